@@ -1,0 +1,41 @@
+"""rattlefit: identify the physics of idle gear rattle from encoder recordings.
+
+The model is the one-dof gear-pair model of the seed paper (mesh stiffness in contact,
+squeeze-film damping of the oil between approaching flanks, bearing drag torque). rattlefit
+simulates it differentiably with JAX/diffrax and identifies the oil-film half-length ``a``, the
+drag torque ``T_b`` and the effective viscosity from recordings.
+
+Importing rattlefit enables JAX's 64-bit mode: the contact law spans displacements from
+nanometres (static deflection) to millimetres (backlash) and needs double precision.
+"""
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+from .drive import Drive  # noqa: E402
+from .errors import ParameterError, RattlefitError, RecordingError, SolverError  # noqa: E402
+from .geometry import GearGeometry, table2_pair  # noqa: E402
+from .model import Effect, RattleModel, RattleParams, Smoothing  # noqa: E402
+from .oil import dynamic_viscosity  # noqa: E402
+from .simulate import Solution, simulate, simulate_batch  # noqa: E402
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Drive",
+    "Effect",
+    "GearGeometry",
+    "ParameterError",
+    "RattleModel",
+    "RattleParams",
+    "RattlefitError",
+    "RecordingError",
+    "Smoothing",
+    "Solution",
+    "SolverError",
+    "dynamic_viscosity",
+    "simulate",
+    "simulate_batch",
+    "table2_pair",
+]

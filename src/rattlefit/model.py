@@ -1,0 +1,303 @@
+"""The one-dof rattle model of the seed paper, eqs. (1)–(5), with smoothed contact switching.
+
+Coordinate and sign convention
+------------------------------
+The state is ``y = (q, v)``: ``q = r2·θ2 − r1·θ1`` (m) is the paper's ``r2·Δθ`` of eq. (1),
+the driven gear's lead over the driving gear on the pitch circle, and ``v = q̇`` (m/s). The
+recorded relative motion of eq. (6) is ``Δθ* = −q / r1``. With ``c`` half the circumferential
+backlash the flanks touch at ``q = −c`` (drive side: the driving gear pushes) and ``q = +c``
+(coast side). The equation of motion, eq. (2) divided by r2, is
+
+    m q̈ = F_mesh + F_squeeze − T_b / r2 − m r1 θ̈1(t),        m = I2 / r2²
+
+* mesh contact (eq. 3, first line): ``F_mesh = −K(θ1)·[P(q − c) − P(−q − c)]``, P the
+  penetration (``max(0, ·)``, smoothed by a softplus of width ``contact_width``);
+* mesh stiffness (eq. 4): ``K(θ1)`` is the sum over the tooth pairs in contact of
+  ``k_p·exp(C_a·|(φ − εΘp/2)/(1.125 εα Θp)|³)``, φ ∈ [0, εΘp] the engagement angle of the pair
+  (pair windows smoothed over ``mesh_width`` base pitches), scaled by ``stiffness_scale``;
+* squeeze film (eq. 3, second and third lines; eq. 5): the film ahead of the motion resists the
+  approach, ``F_squeeze = −S(h₊)·max(v, 0)·g(h₊) + S(h₋)·max(−v, 0)·g(h₋)`` with the gaps
+  ``h± = c ∓ q``, ``g`` the gap indicator (1 while the flanks are apart) and S evaluated at
+  ``max(h, h_min)`` (saturation at S_max = S(h_min));
+* drag: the constant bearing drag torque T_b opposes the driven gear's (always forward)
+  rotation.
+
+Eq. (3) writes the elastic force as ``K·r2Δθ``; rattlefit uses the penetration ``K·(|q| − c)``
+so that the force is continuous at first touch, as every contact model does.
+
+Extra physical effects (flank friction, run-out, ...) plug in through :class:`Effect`: each is a
+self-contained module that may add a force and/or a kinematic error to the flank gap.
+"""
+
+from __future__ import annotations
+
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, ArrayLike, Float
+
+from ._util import concrete
+from .drive import Drive
+from .errors import ParameterError
+from .geometry import GearGeometry
+
+Scalar = Float[Array, "*batch"]
+
+#: Upper bound on tooth pairs in contact at once (ε < 3 for automotive helical pairs; +1 margin).
+MAX_PAIRS_IN_CONTACT = 4
+
+
+def _positive_field(name, value, *, allow_zero=False):
+    arr = concrete(value)
+    if arr is None:
+        return
+    ok = np.isfinite(arr) & ((arr >= 0) if allow_zero else (arr > 0))
+    if not np.all(ok):
+        bound = "≥ 0" if allow_zero else "> 0"
+        raise ParameterError(f"parameter {name} must be finite and {bound}, got {arr}")
+
+
+class RattleParams(eqx.Module):
+    """The identifiable physical parameters (a pytree: batch it by giving leading axes).
+
+    Attributes
+    ----------
+    film_half_length : a of eq. (5), semi-length of the oil film along the flanks, m (≥ 0;
+        0 means dry).
+    drag_torque : T_b, bearing drag torque on the driven gear, N m (≥ 0).
+    viscosity : μ, effective dynamic viscosity of the oil between the flanks, Pa s (> 0).
+    min_film : h_min, adsorbed film thickness at which squeeze damping saturates, m (> 0).
+    stiffness_scale : factor on the default (ISO 6336) mesh stiffness, dimensionless (> 0).
+    backlash : total circumferential backlash on the pitch circle, m (> 0).
+    """
+
+    film_half_length: Scalar
+    drag_torque: Scalar
+    viscosity: Scalar
+    min_film: Scalar
+    stiffness_scale: Scalar
+    backlash: Scalar
+
+    def __init__(
+        self,
+        film_half_length,
+        drag_torque,
+        viscosity,
+        backlash,
+        *,
+        min_film=10e-6,
+        stiffness_scale=1.0,
+    ):
+        self.film_half_length = jnp.asarray(film_half_length, dtype=float)
+        self.drag_torque = jnp.asarray(drag_torque, dtype=float)
+        self.viscosity = jnp.asarray(viscosity, dtype=float)
+        self.backlash = jnp.asarray(backlash, dtype=float)
+        self.min_film = jnp.asarray(min_film, dtype=float)
+        self.stiffness_scale = jnp.asarray(stiffness_scale, dtype=float)
+
+    def __check_init__(self):
+        _positive_field("film_half_length", self.film_half_length, allow_zero=True)
+        _positive_field("drag_torque", self.drag_torque, allow_zero=True)
+        _positive_field("viscosity", self.viscosity)
+        _positive_field("backlash", self.backlash)
+        _positive_field("min_film", self.min_film)
+        _positive_field("stiffness_scale", self.stiffness_scale)
+        b, h = concrete(self.backlash), concrete(self.min_film)
+        if b is not None and h is not None and np.any(2 * h >= b):
+            raise ParameterError(
+                f"parameter min_film ({h} m) must be well below half the backlash ({b / 2} m)"
+            )
+
+    def as_dict(self) -> dict[str, np.ndarray]:
+        """Field name → numpy value (SI units)."""
+        return {k: np.asarray(getattr(self, k)) for k in PARAM_UNITS}
+
+
+#: Parameter names with their SI units.
+PARAM_UNITS = {
+    "film_half_length": "m",
+    "drag_torque": "N m",
+    "viscosity": "Pa s",
+    "min_film": "m",
+    "stiffness_scale": "1",
+    "backlash": "m",
+}
+
+
+class Smoothing(eqx.Module):
+    """Widths over which the sharp switches of the model are smoothed.
+
+    ``contact_width`` (m) smooths contact onset and the film-saturation kink (softplus and
+    logistic of that width); ``mesh_width`` (in base pitches) smooths the entry and exit of a
+    tooth pair in eq. (4). Both → 0 recovers the sharp model.
+    """
+
+    contact_width: float = eqx.field(static=True, default=0.1e-6)
+    mesh_width: float = eqx.field(static=True, default=0.01)
+
+    def __check_init__(self):
+        if not (self.contact_width > 0 and self.mesh_width > 0):
+            raise ParameterError("smoothing widths must be positive")
+
+    def scaled(self, factor: float) -> Smoothing:
+        """Both widths multiplied by ``factor``."""
+        return Smoothing(self.contact_width * factor, self.mesh_width * factor)
+
+
+def squeeze_coefficient(h, a, viscosity, radius, width):
+    """Squeeze-film damping coefficient S(h) of eq. (5), N s/m (magnitude).
+
+    Written as ``S = 3 μ Z R^{3/2} h^{-3/2} G(a/√(R h))`` with
+    ``G(y) = arctan y + y (y² − 1)/(1 + y²)²``, which is eq. (5) exactly; ``G → π/2`` for a long
+    film (a ≫ √(Rh)) and ``G ≈ (8/3) y³`` for a short one, where S → 8 μ Z a³ / h³ (parallel
+    plates). The short-film series is used below y = 10⁻² to avoid cancellation.
+    """
+    y = a / jnp.sqrt(radius * h)
+    small = y < 1e-2
+    ys = jnp.where(small, 0.5, y)  # keep the unused branch finite (and its gradient)
+    g_full = jnp.arctan(ys) + ys * (ys**2 - 1.0) / (1.0 + ys**2) ** 2
+    g_series = (8.0 / 3.0) * y**3 * (1.0 - 0.6 * y**2)
+    g = jnp.where(small, g_series, g_full)
+    return 3.0 * viscosity * width * radius**1.5 * h**-1.5 * g
+
+
+class Effect(eqx.Module):
+    """An extra physical effect outside the seed paper's model (the plug-in contract).
+
+    Subclasses override either or both hooks; each must be a pure JAX function of its inputs.
+
+    * :meth:`gap_error` — a kinematic error (m) that shifts the flank positions, e.g. wheel
+      run-out or tooth errors: the contact and squeeze laws see ``q − gap_error``.
+    * :meth:`force` — an extra force on the pitch circle (N), e.g. flank friction or a
+      speed-dependent drag.
+    """
+
+    def gap_error(self, t, theta1, model: RattleModel, params: RattleParams, drive: Drive):
+        return jnp.zeros(())
+
+    def force(self, t, q, v, model: RattleModel, params: RattleParams, drive: Drive):
+        return jnp.zeros(())
+
+
+class RattleModel(eqx.Module):
+    """The gear pair's constants, the smoothing and the extra effects: the vector field.
+
+    Build with :meth:`from_geometry`. Geometry constants are arrays (not static), so one
+    compiled simulator serves every pair and centre distance.
+    """
+
+    mass: Float[Array, ""]  #: I2/r2², kg
+    r1: Float[Array, ""]  #: m
+    r2: Float[Array, ""]  #: m
+    pitch_stiffness: Float[Array, ""]  #: k_p, N/m
+    stiffness_shape: Float[Array, ""]  #: C_a
+    contact_ratio: Float[Array, ""]  #: ε
+    transverse_contact_ratio: Float[Array, ""]  #: εα
+    base_pitch_angle: Float[Array, ""]  #: Θp, rad
+    curvature_radius: Float[Array, ""]  #: R, m
+    axial_width: Float[Array, ""]  #: Z, m
+    smoothing: Smoothing
+    effects: tuple[Effect, ...]
+
+    @classmethod
+    def from_geometry(
+        cls,
+        geometry: GearGeometry,
+        *,
+        smoothing: Smoothing | None = None,
+        effects: tuple[Effect, ...] = (),
+    ) -> RattleModel:
+        g = geometry
+        f = lambda x: jnp.asarray(x, dtype=float)  # noqa: E731
+        return cls(
+            mass=f(g.equivalent_mass),
+            r1=f(g.pitch_radius_driving),
+            r2=f(g.pitch_radius_driven),
+            pitch_stiffness=f(g.pitch_point_stiffness),
+            stiffness_shape=f(g.stiffness_shape),
+            contact_ratio=f(g.total_contact_ratio),
+            transverse_contact_ratio=f(g.transverse_contact_ratio),
+            base_pitch_angle=f(g.base_pitch_angle),
+            curvature_radius=f(g.curvature_radius),
+            axial_width=f(g.axial_width),
+            smoothing=smoothing or Smoothing(),
+            effects=tuple(effects),
+        )
+
+    def with_effects(self, *effects: Effect) -> RattleModel:
+        """The same model with extra effects appended."""
+        return eqx.tree_at(lambda m: m.effects, self, self.effects + tuple(effects))
+
+    # -- the constitutive laws ------------------------------------------------------------
+    def mesh_stiffness(self, theta1, stiffness_scale=1.0):
+        """K(θ1) of eq. (4), N/m: the sum over the tooth pairs in contact."""
+        eps, eps_a = self.contact_ratio, self.transverse_contact_ratio
+        u = jnp.mod(theta1 / self.base_pitch_angle, 1.0) + jnp.arange(MAX_PAIRS_IN_CONTACT)
+        w = self.smoothing.mesh_width
+        window = jax.nn.sigmoid(u / w) * jax.nn.sigmoid((eps - u) / w)
+        shape = jnp.exp(self.stiffness_shape * jnp.abs((u - eps / 2) / (1.125 * eps_a)) ** 3)
+        return stiffness_scale * self.pitch_stiffness * jnp.sum(window * shape)
+
+    def squeeze(self, h, params: RattleParams):
+        """Squeeze damping S(max(h, h_min)) of eq. (5), N s/m, smoothly saturated."""
+        w = self.smoothing.contact_width
+        h_eff = params.min_film + w * jax.nn.softplus((h - params.min_film) / w)
+        return squeeze_coefficient(
+            h_eff, params.film_half_length, params.viscosity, self.curvature_radius, self.axial_width
+        )
+
+    def forces(self, t, q, v, params: RattleParams, drive: Drive):
+        """Contact and squeeze forces on the pitch circle, N, as (F_mesh, F_squeeze)."""
+        w = self.smoothing.contact_width
+        theta1 = drive.angle(t)
+        qe = q - sum((e.gap_error(t, theta1, self, params, drive) for e in self.effects), 0.0)
+        c = 0.5 * params.backlash
+        h_plus, h_minus = c - qe, c + qe  # gaps to the coast and drive flanks
+        k = self.mesh_stiffness(theta1, params.stiffness_scale)
+        f_mesh = -k * w * (jax.nn.softplus(-h_plus / w) - jax.nn.softplus(-h_minus / w))
+        apart_plus, apart_minus = jax.nn.sigmoid(h_plus / w), jax.nn.sigmoid(h_minus / w)
+        f_squeeze = -self.squeeze(h_plus, params) * jnp.maximum(v, 0.0) * apart_plus + self.squeeze(
+            h_minus, params
+        ) * jnp.maximum(-v, 0.0) * apart_minus
+        return f_mesh, f_squeeze
+
+    def vector_field(self, t, y, args):
+        """dy/dt for diffrax: ``args = (params, drive)``."""
+        params, drive = args
+        q, v = y[0], y[1]
+        f_mesh, f_squeeze = self.forces(t, q, v, params, drive)
+        f_extra = sum((e.force(t, q, v, self, params, drive) for e in self.effects), 0.0)
+        drag = params.drag_torque / self.r2
+        acc = (f_mesh + f_squeeze + f_extra - drag) / self.mass - self.r1 * drive.acceleration(t)
+        return jnp.stack([v, acc])
+
+    # -- closed-form facts ---------------------------------------------------------------
+    def rattle_threshold(self, params: RattleParams, drive: Drive) -> bool:
+        """Singh et al. (1989): no rattle while I2 (r1/r2) max|θ̈1| < T_b.
+
+        In the model's terms: the inertial forcing m r1 max|θ̈1| stays below the drag T_b/r2,
+        so the driven gear never leaves the drive flank. Returns True when rattle is expected.
+        """
+        forcing = float(self.mass * self.r1) * drive.max_acceleration()
+        return forcing > float(params.drag_torque / self.r2)
+
+
+def relative_motion_from_q(q: ArrayLike, model: RattleModel) -> Array:
+    """Δθ* = −q / r1 (eq. 6), rad."""
+    return -jnp.asarray(q) / model.r1
+
+
+def backlash_from_recording_angle(geometry: GearGeometry) -> float:
+    """Circumferential backlash (m) from the recording's angular backlash: r1 · Δθ*_play."""
+    return geometry.backlash
+
+
+def default_params(geometry: GearGeometry, *, film_half_length, drag_torque, viscosity, **kw):
+    """:class:`RattleParams` with the backlash taken from the geometry."""
+    return RattleParams(film_half_length, drag_torque, viscosity, geometry.backlash, **kw)
+
+
+_ = math  # math is used in docstrings' formulas only

@@ -1,0 +1,730 @@
+"""Read, write and check encoder recordings (HDF5 recording format, version 1).
+
+The format is specified in ``recording-format.md``. It is described here once, declaratively,
+by :data:`SCHEMAS` (one table of :class:`FieldSpec` rows per ``format_version``); reading and
+writing both validate by walking that table, so every violation is reported the same way: one
+:class:`~rattlefit.errors.RecordingError` naming the file, the field and the problem.
+
+Field names follow HDF5 paths: ``/gear_pair@teeth_driving`` is an attribute of a group
+(``/@format_version`` for the root group), ``/encoders/primary`` is a dataset.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import h5py
+import numpy as np
+import numpy.typing as npt
+
+from rattlefit.errors import RecordingError
+
+__all__ = [
+    "FORMAT_NAME",
+    "SCHEMAS",
+    "FieldSpec",
+    "GearPairSpec",
+    "OilSpec",
+    "OperatingPoint",
+    "Recording",
+    "check_recording",
+    "inspect_warnings",
+    "max_count_jump",
+    "read_recording",
+    "read_truth",
+    "write_recording",
+]
+
+FORMAT_NAME = "rattlefit.recording"
+FORMAT_VERSION = 1
+TRUTH_GROUP = "/truth"
+MEMORY = "<memory>"
+
+# --------------------------------------------------------------------------------------------
+# Declarative schema
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """Closed or open interval for a finite number; ``None`` means unbounded on that side."""
+
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+
+    def describe(self) -> str:
+        if self.hi is None:
+            return f"{'>' if self.lo_open else '>='} {self.lo:g}"
+        if self.lo is None:
+            return f"{'<' if self.hi_open else '<='} {self.hi:g}"
+        left, right = "(" if self.lo_open else "[", ")" if self.hi_open else "]"
+        return f"in {left}{self.lo:g}, {self.hi:g}{right}"
+
+    def accepts(self, v: float) -> bool:
+        if not math.isfinite(v):
+            return False
+        if self.lo is not None and (v <= self.lo if self.lo_open else v < self.lo):
+            return False
+        return not (self.hi is not None and (v >= self.hi if self.hi_open else v > self.hi))
+
+
+@dataclass(frozen=True)
+class OneOf:
+    """The value must be one of a fixed set."""
+
+    values: tuple[Any, ...]
+
+    def describe(self) -> str:
+        return "one of " + ", ".join(repr(v) for v in self.values)
+
+    def accepts(self, v: Any) -> bool:
+        return v in self.values
+
+
+Rule = Bounds | OneOf
+Kind = Literal["str", "int", "float", "counts"]
+_NUMBER = (int, float, np.integer, np.floating)
+
+POSITIVE = Bounds(lo=0, lo_open=True)
+NON_NEGATIVE = Bounds(lo=0)
+AT_LEAST_ONE = Bounds(lo=1)
+
+
+@dataclass(frozen=True)
+class FieldSpec:
+    """One row of the schema: where a field lives, what kind it is and which values are valid.
+
+    ``kind`` is ``"str"``, ``"int"``, ``"float"`` (scalar attributes) or ``"counts"`` (a 1-D
+    integer dataset). ``unit`` is informative and appears in error messages.
+    """
+
+    group: str
+    name: str
+    kind: Kind
+    rule: Rule | None = None
+    unit: str = ""
+    required: bool = True
+
+    @property
+    def path(self) -> str:
+        """Field name used in errors: ``/group@attr`` or ``/group/dataset``."""
+        if self.kind == "counts":
+            return f"{self.group.rstrip('/')}/{self.name}"
+        return f"{self.group}@{self.name}"
+
+
+_V1_FIELDS: tuple[FieldSpec, ...] = (
+    FieldSpec("/", "format", "str", OneOf((FORMAT_NAME,))),
+    FieldSpec("/", "format_version", "int"),  # dispatched on: must be a key of SCHEMAS
+    FieldSpec("/", "title", "str", required=False),
+    FieldSpec("/encoders", "sample_rate_hz", "float", POSITIVE, "Hz"),
+    FieldSpec("/encoders", "counts_per_rev", "int", AT_LEAST_ONE, "counts"),
+    FieldSpec("/encoders", "primary", "counts"),
+    FieldSpec("/encoders", "secondary", "counts"),
+    FieldSpec("/gear_pair", "teeth_driving", "int", AT_LEAST_ONE),
+    FieldSpec("/gear_pair", "teeth_driven", "int", AT_LEAST_ONE),
+    FieldSpec("/gear_pair", "pitch_diameter_driving_mm", "float", POSITIVE, "mm"),
+    FieldSpec("/gear_pair", "pitch_diameter_driven_mm", "float", POSITIVE, "mm"),
+    FieldSpec("/gear_pair", "face_width_driving_mm", "float", POSITIVE, "mm"),
+    FieldSpec("/gear_pair", "face_width_driven_mm", "float", POSITIVE, "mm"),
+    FieldSpec("/gear_pair", "normal_module_mm", "float", POSITIVE, "mm"),
+    FieldSpec("/gear_pair", "normal_pressure_angle_deg", "float", Bounds(0, 45, True, True), "deg"),
+    FieldSpec("/gear_pair", "helix_angle_deg", "float", Bounds(0, 60, False, True), "deg"),
+    FieldSpec("/gear_pair", "driven_inertia_kg_m2", "float", POSITIVE, "kg m^2"),
+    FieldSpec("/gear_pair", "center_distance_mm", "float", POSITIVE, "mm"),
+    FieldSpec("/gear_pair", "angular_backlash_rad", "float", POSITIVE, "rad"),
+    FieldSpec("/gear_pair", "angular_backlash_std_rad", "float", NON_NEGATIVE, "rad", False),
+    FieldSpec("/operating", "lubrication", "str", OneOf(("dry", "boundary", "oil_jet"))),
+    FieldSpec("/operating", "oil_temperature_c", "float", Bounds(-60, 250, True, True), "degC"),
+    FieldSpec("/operating", "drive_mean_speed_rad_s", "float", POSITIVE, "rad/s"),
+    FieldSpec("/operating", "drive_speed_amplitude_rad_s", "float", NON_NEGATIVE, "rad/s"),
+    FieldSpec("/operating", "drive_frequency_hz", "float", POSITIVE, "Hz"),
+    FieldSpec("/oil", "viscosity_40c_cst", "float", POSITIVE, "cSt"),
+    FieldSpec("/oil", "viscosity_100c_cst", "float", POSITIVE, "cSt"),
+    FieldSpec("/oil", "density_kg_m3", "float", POSITIVE, "kg/m^3"),
+)
+
+SCHEMAS: dict[int, tuple[FieldSpec, ...]] = {1: _V1_FIELDS}
+"""Schema of every supported ``format_version``: the table validation walks."""
+
+# --------------------------------------------------------------------------------------------
+# Data model
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class GearPairSpec:
+    """Geometry and inertia of the gear pair (``/gear_pair``); lengths in mm, angles as named."""
+
+    teeth_driving: int
+    teeth_driven: int
+    pitch_diameter_driving_mm: float
+    pitch_diameter_driven_mm: float
+    face_width_driving_mm: float
+    face_width_driven_mm: float
+    normal_module_mm: float
+    normal_pressure_angle_deg: float
+    helix_angle_deg: float
+    driven_inertia_kg_m2: float
+    center_distance_mm: float
+    angular_backlash_rad: float
+    angular_backlash_std_rad: float | None = None
+
+
+@dataclass(frozen=True)
+class OperatingPoint:
+    """Test conditions (``/operating``); commanded speed ω(t) = Ω_m + ΔΩ sin(2π f t) in rad/s."""
+
+    lubrication: str
+    oil_temperature_c: float
+    drive_mean_speed_rad_s: float
+    drive_speed_amplitude_rad_s: float
+    drive_frequency_hz: float
+
+
+@dataclass(frozen=True)
+class OilSpec:
+    """Lubricant (``/oil``): kinematic viscosities in cSt (mm²/s) and density in kg/m³."""
+
+    viscosity_40c_cst: float
+    viscosity_100c_cst: float
+    density_kg_m3: float
+
+
+@dataclass(frozen=True, eq=False)
+class Recording:
+    """One test: the two encoder count streams and the metadata needed to simulate it.
+
+    Parameters
+    ----------
+    primary, secondary : ndarray of int, shape (N,)
+        Cumulative counts of the driving and driven shafts, sample k latched at k / fs.
+        Stored as read-only int64 copies.
+    sample_rate_hz : float
+        Trigger rate fs (Hz).
+    counts_per_rev : int
+        Counts per shaft revolution after quadrature decoding.
+    gear_pair, operating, oil
+        Metadata groups.
+    title : str
+        Free text.
+    path : str or None
+        File the recording was read from; used in error messages.
+    """
+
+    primary: npt.NDArray[np.int64]
+    secondary: npt.NDArray[np.int64]
+    sample_rate_hz: float
+    counts_per_rev: int
+    gear_pair: GearPairSpec
+    operating: OperatingPoint
+    oil: OilSpec
+    title: str = ""
+    path: str | None = None
+
+    def __post_init__(self) -> None:
+        file = self.path or MEMORY
+        arrays = {}
+        for name in ("primary", "secondary"):
+            a = np.asarray(getattr(self, name))
+            field = f"/encoders/{name}"
+            if a.ndim != 1:
+                raise RecordingError(file, field, f"must be 1-D, got shape {a.shape}")
+            if a.dtype.kind not in "iu":
+                raise RecordingError(file, field, f"dtype {a.dtype} is not an integer type")
+            arrays[name] = np.array(a, dtype=np.int64)
+            arrays[name].setflags(write=False)
+            object.__setattr__(self, name, arrays[name])
+        n1, n2 = arrays["primary"].size, arrays["secondary"].size
+        if n1 != n2:
+            raise RecordingError(
+                file, "/encoders/secondary", f"length {n2} differs from /encoders/primary ({n1})"
+            )
+        if n1 < 2:
+            raise RecordingError(file, "/encoders/primary", f"needs >= 2 samples, got {n1}")
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples N."""
+        return int(self.primary.size)
+
+    @property
+    def duration(self) -> float:
+        """Recording length N / fs (s)."""
+        return self.n_samples / self.sample_rate_hz
+
+    @property
+    def time(self) -> npt.NDArray[np.float64]:
+        """Sample times k / fs (s), shape (N,)."""
+        return np.arange(self.n_samples) / self.sample_rate_hz
+
+    def _theta(self, counts: npt.NDArray[np.int64]) -> npt.NDArray[np.float64]:
+        return (2.0 * np.pi / self.counts_per_rev) * (counts - counts[0]).astype(np.float64)
+
+    @property
+    def theta_primary(self) -> npt.NDArray[np.float64]:
+        """Driving-shaft angle θ1 (rad), zero at the first sample."""
+        return self._theta(self.primary)
+
+    @property
+    def theta_secondary(self) -> npt.NDArray[np.float64]:
+        """Driven-shaft angle θ2 (rad), zero at the first sample, positive in its own sense."""
+        return self._theta(self.secondary)
+
+    @property
+    def gear_ratio(self) -> float:
+        """Tooth ratio z2 / z1 (= r2 / r1 for the pitch radii)."""
+        return self.gear_pair.teeth_driven / self.gear_pair.teeth_driving
+
+    @property
+    def relative_motion(self) -> npt.NDArray[np.float64]:
+        """Relative motion Δθ* = θ1 − θ2 · z2/z1 of the seed paper's eq. (6), median removed (rad).
+
+        Expressed as a primary-shaft angle; its peak-to-peak is bounded by the angular backlash.
+        """
+        d = self.theta_primary - self.gear_ratio * self.theta_secondary
+        return d - np.median(d)
+
+    @property
+    def quantisation_std(self) -> float:
+        """Standard deviation of encoder quantisation noise in Δθ*, eq. (8) (rad).
+
+        (1 / (2√3)) · (2π / counts_per_rev) · sqrt(1 + (z2/z1)²).
+        """
+        q = 2.0 * np.pi / self.counts_per_rev
+        return float(q / (2.0 * np.sqrt(3.0)) * np.sqrt(1.0 + self.gear_ratio**2))
+
+
+# --------------------------------------------------------------------------------------------
+# Validation
+# --------------------------------------------------------------------------------------------
+
+
+class _Unreadable:
+    """Placeholder for an attribute that exists but whose value could not be read."""
+
+    def __init__(self, exc: BaseException):
+        self.exc = exc
+
+
+def _show(v: Any) -> str:
+    return repr(v.item() if isinstance(v, np.generic) else v)
+
+
+def _coerce(raw: Any, spec: FieldSpec, file: str) -> str | int | float:
+    """Normalise an attribute value (numpy scalar, bytes, size-1 array) to a Python value."""
+    err = lambda problem: RecordingError(file, spec.path, problem)  # noqa: E731
+    if isinstance(raw, _Unreadable):
+        raise err(f"cannot read value (file truncated or corrupt?): {raw.exc}")
+    if isinstance(raw, h5py.Empty):
+        raise err("attribute has no value (empty dataspace)")
+    if isinstance(raw, np.ndarray):
+        if raw.size != 1:
+            raise err(f"expected a scalar {spec.kind}, got an array of shape {raw.shape}")
+        raw = raw.reshape(-1)[0]
+    if spec.kind == "str":
+        if isinstance(raw, bytes | np.bytes_):
+            try:
+                return bytes(raw).decode("utf-8")
+            except UnicodeDecodeError:
+                raise err(f"string {_show(raw)} is not valid UTF-8") from None
+        if isinstance(raw, str):
+            return str(raw)
+        raise err(f"expected a string, got {_show(raw)}")
+    if isinstance(raw, bool | np.bool_) or not isinstance(raw, _NUMBER):
+        expected = "an integer" if spec.kind == "int" else "a number"
+        raise err(f"expected {expected}, got {_show(raw)}")
+    if spec.kind == "int":
+        if isinstance(raw, int | np.integer):
+            return int(raw)
+        if not (math.isfinite(raw) and float(raw).is_integer()):
+            raise err(f"expected an integer, got non-integer {_show(raw)}")
+        return int(raw)
+    return float(raw)
+
+
+def _check_rule(value: Any, spec: FieldSpec, file: str) -> None:
+    if spec.rule is not None and not spec.rule.accepts(value):
+        unit = f" {spec.unit}" if spec.unit else ""
+        finite = "finite and " if isinstance(spec.rule, Bounds) else ""
+        problem = f"got {value!r}{unit}; must be {finite}{spec.rule.describe()}"
+        raise RecordingError(file, spec.path, problem)
+
+
+def _validate_attrs(
+    groups: Mapping[str, Mapping[str, Any] | None], file: str
+) -> dict[str, dict[str, Any]]:
+    """Walk the schema over raw attributes ``{group path: {name: value} or None if missing}``.
+
+    Returns normalised values ``{group path: {name: value}}``; raises on the first violation.
+    """
+    root = groups.get("/") or {}
+    header = {s.name: s for s in _V1_FIELDS if s.group == "/"}
+    for name in ("format", "format_version"):
+        if name not in root:
+            raise RecordingError(file, header[name].path, "missing required attribute")
+    fmt = _coerce(root["format"], header["format"], file)
+    _check_rule(fmt, header["format"], file)
+    version = _coerce(root["format_version"], header["format_version"], file)
+    if version not in SCHEMAS:
+        supported = ", ".join(str(v) for v in SCHEMAS)
+        raise RecordingError(
+            file,
+            header["format_version"].path,
+            f"unsupported format_version {version}; this reader supports {supported}",
+        )
+    out: dict[str, dict[str, Any]] = {}
+    for spec in SCHEMAS[version]:
+        if spec.kind == "counts":
+            continue
+        attrs = groups.get(spec.group)
+        if attrs is None:
+            raise RecordingError(file, spec.group, "missing required group")
+        if spec.name not in attrs:
+            if spec.required:
+                raise RecordingError(file, spec.path, "missing required attribute")
+            continue
+        value = _coerce(attrs[spec.name], spec, file)
+        _check_rule(value, spec, file)
+        out.setdefault(spec.group, {})[spec.name] = value
+    return out
+
+
+def max_count_jump(counts_per_rev: int, sample_rate_hz: float, operating: OperatingPoint) -> int:
+    """Largest physically plausible change of either encoder between two samples (counts).
+
+    ``ceil(counts_per_rev / (2π) · (3 · (Ω_m + ΔΩ) + 100 rad/s) / fs) + 2``: three times the
+    peak commanded primary speed plus 100 rad/s of margin for rattle impacts, converted to
+    counts per sample, plus 2 counts of quantisation slack. Applied to both shafts (the driven
+    shaft is slower whenever z2 >= z1, and rattles within the backlash).
+    """
+    peak = 3.0 * (operating.drive_mean_speed_rad_s + operating.drive_speed_amplitude_rad_s)
+    return math.ceil(counts_per_rev / (2.0 * np.pi) * (peak + 100.0) / sample_rate_hz) + 2
+
+
+def _check_consistency(rec: Recording, file: str) -> None:
+    """Cross-field checks that the per-field schema cannot express."""
+    op = rec.operating
+    period = 1.0 / op.drive_frequency_hz
+    if rec.duration < period:
+        raise RecordingError(
+            file,
+            "/encoders/primary",
+            f"N = {rec.n_samples} samples ({rec.duration:g} s) is shorter than one period of "
+            f"the drive fluctuation (1 / drive_frequency_hz = {period:g} s)",
+        )
+    allowed = max_count_jump(rec.counts_per_rev, rec.sample_rate_hz, op)
+    for name in ("primary", "secondary"):
+        steps = np.abs(np.diff(getattr(rec, name)))
+        k = int(np.argmax(steps))
+        if steps[k] > allowed:
+            raise RecordingError(
+                file,
+                f"/encoders/{name}",
+                f"counts jump by {int(steps[k])} between samples {k} and {k + 1}, more than "
+                f"the physically possible {allowed} counts per sample",
+            )
+    if rec.oil.viscosity_100c_cst >= rec.oil.viscosity_40c_cst:
+        raise RecordingError(
+            file,
+            "/oil@viscosity_100c_cst",
+            f"got {rec.oil.viscosity_100c_cst!r} cSt; must be below viscosity_40c_cst "
+            f"= {rec.oil.viscosity_40c_cst!r} cSt (oil thins as it warms)",
+        )
+
+
+def _groups_of(rec: Recording) -> dict[str, dict[str, Any]]:
+    """The attributes a recording is written as, keyed by group path."""
+    gear = {k: v for k, v in asdict(rec.gear_pair).items() if v is not None}
+    return {
+        "/": {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "title": rec.title},
+        "/encoders": {"sample_rate_hz": rec.sample_rate_hz, "counts_per_rev": rec.counts_per_rev},
+        "/gear_pair": gear,
+        "/operating": asdict(rec.operating),
+        "/oil": asdict(rec.oil),
+    }
+
+
+def check_recording(recording: Recording, file: str | None = None) -> None:
+    """Apply every check :func:`read_recording` applies; raise :class:`RecordingError` if any fails.
+
+    ``file`` names the file in the error (default: ``recording.path`` or ``"<memory>"``).
+    """
+    file = file or recording.path or MEMORY
+    _validate_attrs(_groups_of(recording), file)
+    _check_consistency(recording, file)
+
+
+# --------------------------------------------------------------------------------------------
+# Reading
+# --------------------------------------------------------------------------------------------
+
+
+def _open(path: Path, file: str) -> h5py.File:
+    if not path.exists():
+        raise RecordingError(file, "/", "no such file")
+    if path.is_dir():
+        raise RecordingError(file, "/", "is a directory, not a recording file")
+    try:
+        return h5py.File(path, "r")
+    except OSError as exc:
+        msg = str(exc)
+        if "signature" in msg:
+            raise RecordingError(file, "/", "not an HDF5 file (no HDF5 signature)") from None
+        if "truncated" in msg:
+            raise RecordingError(file, "/", f"file is truncated ({msg})") from None
+        raise RecordingError(file, "/", f"cannot open as HDF5: {msg}") from None
+
+
+def _raw_attrs(obj: h5py.Group) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for name in obj.attrs:
+        try:
+            out[name] = obj.attrs[name]
+        except Exception as exc:  # unreadable values only matter if the schema needs them
+            out[name] = _Unreadable(exc)
+    return out
+
+
+def _read_counts(f: h5py.File, spec: FieldSpec, file: str) -> np.ndarray:
+    obj = f.get(spec.group)
+    if not isinstance(obj, h5py.Group):
+        raise RecordingError(file, spec.group, "missing required group")
+    ds = obj.get(spec.name)
+    if ds is None:
+        raise RecordingError(file, spec.path, "missing required dataset")
+    if not isinstance(ds, h5py.Dataset):
+        raise RecordingError(file, spec.path, "expected a dataset, found a group")
+    if ds.dtype not in (np.dtype(np.int64), np.dtype(np.int32)):
+        raise RecordingError(file, spec.path, f"dtype {ds.dtype} not allowed; must be int64/int32")
+    if ds.ndim != 1:
+        raise RecordingError(file, spec.path, f"must be 1-D, got shape {ds.shape}")
+    try:
+        return np.asarray(ds[()], dtype=np.int64)
+    except Exception as exc:
+        raise RecordingError(
+            file, spec.path, f"cannot read data (file truncated or corrupt?): {exc}"
+        ) from None
+
+
+def read_recording(path: str | os.PathLike[str]) -> Recording:
+    """Read and validate a recording file.
+
+    Every field of :data:`SCHEMAS` is checked (presence, kind, range), then the cross-field
+    rules: equal lengths, N / fs >= 1 / drive_frequency_hz, viscosity_40c > viscosity_100c,
+    and no encoder step larger than :func:`max_count_jump`. Unknown groups and attributes are
+    ignored.
+
+    Parameters
+    ----------
+    path : path-like
+        HDF5 file in the recording format.
+
+    Returns
+    -------
+    Recording
+        With ``path`` set to ``str(path)``.
+
+    Raises
+    ------
+    RecordingError
+        Exactly one, naming the file, the field and the problem, for any unreadable or invalid
+        file (missing, not HDF5, truncated, missing field, wrong type or out of range).
+    """
+    file = os.fspath(path)
+    with _open(Path(file), file) as f:
+        try:
+            groups: dict[str, dict[str, Any] | None] = {"/": _raw_attrs(f)}
+            for group in {s.group for schema in SCHEMAS.values() for s in schema} - {"/"}:
+                obj = f.get(group)
+                groups[group] = _raw_attrs(obj) if isinstance(obj, h5py.Group) else None
+        except (OSError, RuntimeError, KeyError, ValueError) as exc:
+            raise RecordingError(file, "/", f"cannot read (truncated or corrupt?): {exc}") from None
+        values = _validate_attrs(groups, file)
+        schema = SCHEMAS[values["/"]["format_version"]]
+        counts = {s.name: _read_counts(f, s, file) for s in schema if s.kind == "counts"}
+    enc = values["/encoders"]
+    rec = Recording(
+        primary=counts["primary"],
+        secondary=counts["secondary"],
+        sample_rate_hz=enc["sample_rate_hz"],
+        counts_per_rev=enc["counts_per_rev"],
+        gear_pair=GearPairSpec(**values["/gear_pair"]),
+        operating=OperatingPoint(**values["/operating"]),
+        oil=OilSpec(**values["/oil"]),
+        title=values["/"].get("title", ""),
+        path=file,
+    )
+    _check_consistency(rec, file)
+    return rec
+
+
+def read_truth(path: str | os.PathLike[str]) -> dict[str, str | int | float] | None:
+    """Attributes of the optional ``/truth`` group (parameters of a synthetic recording).
+
+    Returns ``None`` when the file has no such group. Values are plain Python str/int/float.
+    """
+    file = os.fspath(path)
+    with _open(Path(file), file) as f:
+        obj = f.get(TRUTH_GROUP)
+        if not isinstance(obj, h5py.Group):
+            return None
+        out: dict[str, str | int | float] = {}
+        for name, raw in _raw_attrs(obj).items():
+            kind: Kind = "int" if isinstance(raw, np.integer) else "float"
+            if isinstance(raw, str | bytes | np.bytes_):
+                kind = "str"
+            out[name] = _coerce(raw, FieldSpec(TRUTH_GROUP, name, kind), file)
+        return out
+
+
+# --------------------------------------------------------------------------------------------
+# Writing
+# --------------------------------------------------------------------------------------------
+
+
+def _write_h5(rec: Recording, target: str, extra: Mapping[str, str | int | float]) -> None:
+    groups = _groups_of(rec)
+    with h5py.File(target, "w") as f:
+        for group, attrs in groups.items():
+            obj = f if group == "/" else f.create_group(group)
+            for name, value in attrs.items():
+                obj.attrs[name] = value
+        for name in ("primary", "secondary"):
+            data = getattr(rec, name)
+            f["/encoders"].create_dataset(
+                name, data=data, dtype=np.int64, compression="gzip", shuffle=True
+            )
+        if extra:
+            truth = f.create_group(TRUTH_GROUP)
+            for name, value in extra.items():
+                truth.attrs[name] = value
+
+
+def write_recording(
+    recording: Recording,
+    path: str | os.PathLike[str],
+    *,
+    overwrite: bool = True,
+    extra_attrs: Mapping[str, str | int | float] | None = None,
+) -> Path:
+    """Validate ``recording`` and write it atomically in format version 1.
+
+    The file is written to a temporary ``*.tmp`` file in the destination directory, flushed to
+    disk and moved into place with :func:`os.replace`; if anything fails the temporary file is
+    removed and an existing file at ``path`` is left untouched.
+
+    Parameters
+    ----------
+    recording : Recording
+        Checked with :func:`check_recording` first, so an invalid file is never written.
+    path : path-like
+        Destination.
+    overwrite : bool
+        If False and ``path`` exists, raise :class:`RecordingError` instead.
+    extra_attrs : mapping of str to str, int or float, optional
+        Written as attributes of a ``/truth`` group (e.g. the parameters a synthetic
+        recording was simulated with); read back with :func:`read_truth`.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    dest = Path(path)
+    file = os.fspath(dest)
+    check_recording(recording, file)
+    extra = dict(extra_attrs or {})
+    for name, value in extra.items():
+        if not name or "/" in name:
+            raise RecordingError(file, f"{TRUTH_GROUP}@{name}", "invalid attribute name")
+        if isinstance(value, bool) or not isinstance(value, str | int | float):
+            raise RecordingError(
+                file, f"{TRUTH_GROUP}@{name}", f"expected a str, int or float, got {value!r}"
+            )
+    if not overwrite and dest.exists():
+        raise RecordingError(file, "/", "file exists and overwrite=False")
+    try:
+        with tempfile.NamedTemporaryFile(
+            delete=False, dir=dest.parent, prefix=f".{dest.name}.", suffix=".tmp"
+        ) as tmp:
+            tmp_name = tmp.name
+    except OSError as exc:
+        raise RecordingError(file, "/", f"cannot create a file in {dest.parent}: {exc}") from None
+    try:
+        _write_h5(recording, tmp_name, extra)
+        with open(tmp_name, "rb+") as fh:
+            os.fsync(fh.fileno())
+        if dest.exists():
+            mode = dest.stat().st_mode & 0o777
+        else:
+            umask = os.umask(0)
+            os.umask(umask)
+            mode = 0o666 & ~umask
+        os.chmod(tmp_name, mode)
+        os.replace(tmp_name, dest)
+    except BaseException:
+        Path(tmp_name).unlink(missing_ok=True)
+        raise
+    return dest
+
+
+# --------------------------------------------------------------------------------------------
+# Soft checks
+# --------------------------------------------------------------------------------------------
+
+
+def inspect_warnings(recording: Recording) -> list[str]:
+    """Notes on anything suspicious that does not make the recording invalid.
+
+    Checks: peak-to-peak of Δθ* against the stated backlash (outside 0.5x-1.5x), primary shaft
+    running backwards, measured mean primary speed more than 5 % from the commanded
+    Ω_m, fewer than 3 fluctuation periods recorded, secondary shaft stationary.
+
+    Returns
+    -------
+    list of str
+        One full sentence per note; empty if nothing looks wrong.
+    """
+    rec, notes = recording, []
+    op, bl = recording.operating, recording.gear_pair.angular_backlash_rad
+    ptp = float(np.ptp(rec.relative_motion))
+    if not 0.5 <= ptp / bl <= 1.5:
+        notes.append(
+            f"The peak-to-peak relative motion Δθ* is {ptp:.4g} rad, {ptp / bl:.2f} times the "
+            f"stated angular backlash of {bl:.4g} rad; check angular_backlash_rad and the encoders."
+        )
+    steps = np.diff(rec.primary)
+    back = np.flatnonzero(steps < 0)
+    if back.size:
+        notes.append(
+            f"The primary shaft runs backwards in {back.size} of {steps.size} sample steps "
+            f"(first between samples {back[0]} and {back[0] + 1}); the drive should turn one way."
+        )
+    mean_speed = float(rec.theta_primary[-1] / ((rec.n_samples - 1) / rec.sample_rate_hz))
+    rel = mean_speed / op.drive_mean_speed_rad_s - 1.0
+    if abs(rel) > 0.05:
+        notes.append(
+            f"The measured mean primary speed is {mean_speed:.4g} rad/s, {100 * rel:+.1f} % from "
+            f"the commanded drive_mean_speed_rad_s of {op.drive_mean_speed_rad_s:.4g} rad/s."
+        )
+    periods = rec.duration * op.drive_frequency_hz
+    if periods < 3:
+        notes.append(
+            f"The recording lasts {rec.duration:.3g} s, only {periods:.2f} periods of the "
+            f"{op.drive_frequency_hz:g} Hz drive fluctuation; at least 3 are advisable."
+        )
+    if np.all(rec.secondary == rec.secondary[0]):
+        notes.append(
+            f"The secondary shaft never moves (all {rec.n_samples} counts equal "
+            f"{int(rec.secondary[0])}); the gears may be out of mesh or the encoder disconnected."
+        )
+    return notes
