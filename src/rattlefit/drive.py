@@ -108,7 +108,9 @@ class Drive(eqx.Module):
     def speed(self, t: ArrayLike) -> Array:
         """θ̇1(t), rad/s (scalar t)."""
         w, ph = self._phases(t)
-        return self.mean_speed + jnp.sum(w * (-self.cos_coeffs * jnp.sin(ph) + self.sin_coeffs * jnp.cos(ph)))
+        return self.mean_speed + jnp.sum(
+            w * (-self.cos_coeffs * jnp.sin(ph) + self.sin_coeffs * jnp.cos(ph))
+        )
 
     def acceleration(self, t: ArrayLike) -> Array:
         """θ̈1(t), rad/s² (scalar t)."""

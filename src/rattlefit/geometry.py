@@ -77,16 +77,19 @@ class GearGeometry:
         }
         for name, ok in checks.items():
             if not (ok and np.isfinite(getattr(self, name))):
-                raise ParameterError(f"gear geometry: {name}={getattr(self, name)!r} is not physical")
+                raise ParameterError(
+                    f"gear geometry: {name}={getattr(self, name)!r} is not physical"
+                )
         if self.center_distance < 0.98 * self.reference_center_distance:
             raise ParameterError(
-                f"gear geometry: centre distance {self.center_distance * 1e3:.3f} mm is below the "
-                f"reference {self.reference_center_distance * 1e3:.3f} mm: the gears would interfere"
+                f"gear geometry: centre distance {self.center_distance * 1e3:.3f} mm is below "
+                f"the reference {self.reference_center_distance * 1e3:.3f} mm: the gears "
+                "would interfere"
             )
         if not (self.transverse_contact_ratio > 0.5 and self.total_contact_ratio > 1.0):
             raise ParameterError(
-                "gear geometry: contact ratios εα="
-                f"{self.transverse_contact_ratio:.3f}, ε={self.total_contact_ratio:.3f} at centre distance "
+                f"gear geometry: contact ratios εα={self.transverse_contact_ratio:.3f}, "
+                f"ε={self.total_contact_ratio:.3f} at centre distance "
                 f"{self.center_distance * 1e3:.3f} mm: the pair would lose contact"
             )
 

@@ -31,8 +31,6 @@ self-contained module that may add a force and/or a kinematic error to the flank
 
 from __future__ import annotations
 
-import math
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -153,13 +151,14 @@ def squeeze_coefficient(h, a, viscosity, radius, width):
     Written as ``S = 3 μ Z R^{3/2} h^{-3/2} G(a/√(R h))`` with
     ``G(y) = arctan y + y (y² − 1)/(1 + y²)²``, which is eq. (5) exactly; ``G → π/2`` for a long
     film (a ≫ √(Rh)) and ``G ≈ (8/3) y³`` for a short one, where S → 8 μ Z a³ / h³ (parallel
-    plates). The short-film series is used below y = 10⁻² to avoid cancellation.
+    plates). The short-film series (8/3) y³ (1 − 9y²/5 + 18y⁴/7) is used below y = 10⁻², where
+    the closed form loses digits to cancellation.
     """
     y = a / jnp.sqrt(radius * h)
     small = y < 1e-2
     ys = jnp.where(small, 0.5, y)  # keep the unused branch finite (and its gradient)
     g_full = jnp.arctan(ys) + ys * (ys**2 - 1.0) / (1.0 + ys**2) ** 2
-    g_series = (8.0 / 3.0) * y**3 * (1.0 - 0.6 * y**2)
+    g_series = (8.0 / 3.0) * y**3 * (1.0 - 1.8 * y**2 + (18.0 / 7.0) * y**4)
     g = jnp.where(small, g_series, g_full)
     return 3.0 * viscosity * width * radius**1.5 * h**-1.5 * g
 
@@ -246,7 +245,11 @@ class RattleModel(eqx.Module):
         w = self.smoothing.contact_width
         h_eff = params.min_film + w * jax.nn.softplus((h - params.min_film) / w)
         return squeeze_coefficient(
-            h_eff, params.film_half_length, params.viscosity, self.curvature_radius, self.axial_width
+            h_eff,
+            params.film_half_length,
+            params.viscosity,
+            self.curvature_radius,
+            self.axial_width,
         )
 
     def forces(self, t, q, v, params: RattleParams, drive: Drive):
@@ -259,9 +262,10 @@ class RattleModel(eqx.Module):
         k = self.mesh_stiffness(theta1, params.stiffness_scale)
         f_mesh = -k * w * (jax.nn.softplus(-h_plus / w) - jax.nn.softplus(-h_minus / w))
         apart_plus, apart_minus = jax.nn.sigmoid(h_plus / w), jax.nn.sigmoid(h_minus / w)
-        f_squeeze = -self.squeeze(h_plus, params) * jnp.maximum(v, 0.0) * apart_plus + self.squeeze(
-            h_minus, params
-        ) * jnp.maximum(-v, 0.0) * apart_minus
+        f_squeeze = (
+            -self.squeeze(h_plus, params) * jnp.maximum(v, 0.0) * apart_plus
+            + self.squeeze(h_minus, params) * jnp.maximum(-v, 0.0) * apart_minus
+        )
         return f_mesh, f_squeeze
 
     def vector_field(self, t, y, args):
@@ -290,14 +294,6 @@ def relative_motion_from_q(q: ArrayLike, model: RattleModel) -> Array:
     return -jnp.asarray(q) / model.r1
 
 
-def backlash_from_recording_angle(geometry: GearGeometry) -> float:
-    """Circumferential backlash (m) from the recording's angular backlash: r1 · Δθ*_play."""
-    return geometry.backlash
-
-
 def default_params(geometry: GearGeometry, *, film_half_length, drag_torque, viscosity, **kw):
     """:class:`RattleParams` with the backlash taken from the geometry."""
     return RattleParams(film_half_length, drag_torque, viscosity, geometry.backlash, **kw)
-
-
-_ = math  # math is used in docstrings' formulas only

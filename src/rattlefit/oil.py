@@ -18,7 +18,9 @@ from .errors import ParameterError
 KELVIN = 273.15
 
 
-def walther_coefficients(viscosity_40c_cst: float, viscosity_100c_cst: float) -> tuple[float, float]:
+def walther_coefficients(
+    viscosity_40c_cst: float, viscosity_100c_cst: float
+) -> tuple[float, float]:
     """ASTM D341 coefficients ``(A, B)`` through two catalogue viscosities (cSt)."""
     if not (viscosity_40c_cst > viscosity_100c_cst > 0):
         raise ParameterError(

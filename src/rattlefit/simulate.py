@@ -86,9 +86,7 @@ def _solve(
         y0=y0,
         args=(params, drive),
         saveat=diffrax.SaveAt(ts=ts),
-        stepsize_controller=diffrax.PIDController(
-            rtol=rtol, atol=atol, pcoeff=0.3, icoeff=0.4
-        ),
+        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=0.3, icoeff=0.4),
         max_steps=max_steps,
         adjoint=_adjoint(sensitivity),
         throw=False,
@@ -137,7 +135,7 @@ def simulate(
     sensitivity : ``"forward"`` (forward-mode derivatives, for Jacobians) or ``"reverse"``.
     y0 : initial (q, v) at ``-burn_in``; default at rest on the drive flank.
     """
-    n = int(round(duration * sample_rate))
+    n = round(duration * sample_rate)
     if n < 2:
         raise ValueError(f"duration {duration} s gives fewer than two samples")
     if y0 is None:
@@ -158,9 +156,7 @@ def simulate(
     return Solution(ts, q, v, rel, theta1, code, steps)
 
 
-def simulate_batch(
-    model: RattleModel, params: RattleParams, drive: Drive, **options
-) -> Solution:
+def simulate_batch(model: RattleModel, params: RattleParams, drive: Drive, **options) -> Solution:
     """:func:`simulate` for parameters with one leading batch axis (``jax.vmap``).
 
     Every leaf of ``params`` must have the same leading size B (broadcast scalars first with
@@ -172,7 +168,9 @@ def simulate_batch(
 
 def broadcast_params(params: RattleParams, size: int) -> RattleParams:
     """Give every leaf of ``params`` a leading axis of ``size`` (scalars are repeated)."""
-    return jax.tree_util.tree_map(lambda x: jnp.broadcast_to(x, (size, *jnp.shape(x)[1:]) if jnp.ndim(x) else (size,)), params)
+    return jax.tree_util.tree_map(
+        lambda x: jnp.broadcast_to(x, (size, *jnp.shape(x)[1:]) if jnp.ndim(x) else (size,)), params
+    )
 
 
 def raise_if_failed(solution: Solution) -> Solution:

@@ -86,7 +86,9 @@ class BandSpec:
     def for_recording(cls, sample_rate: float, **kw) -> BandSpec:
         """Bands for a recording's sample rate, up to its Nyquist frequency."""
         kw.setdefault("f_high", min(5000.0, sample_rate / 2))
-        return cls(sample_rate=sample_rate, segment_length=default_segment_length(sample_rate), **kw)
+        return cls(
+            sample_rate=sample_rate, segment_length=default_segment_length(sample_rate), **kw
+        )
 
 
 def welch_psd(
@@ -116,9 +118,7 @@ def welch_psd(
     return psd * one_sided
 
 
-def band_power(
-    x: Float[ArrayLike, "*batch N"], bands: BandSpec
-) -> Float[Array, "*batch B"]:
+def band_power(x: Float[ArrayLike, "*batch N"], bands: BandSpec) -> Float[Array, "*batch B"]:
     """Mean Welch PSD in each band, rad²/Hz."""
     psd = welch_psd(x, bands.sample_rate, bands.segment_length)
     return psd @ jnp.asarray(bands.matrix.T)
@@ -175,7 +175,7 @@ def rattle_index(
     recordings with the same sample rate compare (the band is clipped at Nyquist).
     """
     x = jnp.asarray(x)
-    n_seg = int(round(segment * sample_rate))
+    n_seg = round(segment * sample_rate)
     n_blocks = x.shape[-1] // n_seg
     if n_blocks < 1:
         raise ValueError(f"signal shorter than one {segment} s IGR block")

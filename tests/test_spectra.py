@@ -1,0 +1,72 @@
+import numpy as np
+import pytest
+from scipy.signal import welch
+
+from rattlefit.spectra import (
+    BandSpec,
+    amplitude_spectrum,
+    band_power,
+    quantisation_floor,
+    rattle_index,
+    welch_psd,
+)
+
+
+def test_welch_matches_scipy():
+    rng = np.random.default_rng(0)
+    x = np.cumsum(rng.normal(size=30000)) * 1e-5 + 1e-3 * np.sin(
+        2 * np.pi * 16 * np.arange(30000) / 1e4
+    )
+    f, p = welch(x, fs=1e4, nperseg=4096)
+    ours = np.asarray(welch_psd(x, 1e4, 4096))
+    np.testing.assert_allclose(ours, p, rtol=1e-10, atol=1e-30)
+    assert np.allclose(BandSpec().frequencies, f)
+
+
+def test_white_noise_band_power_is_its_level():
+    # white noise of variance σ² has one-sided PSD 2σ²/fs in every band
+    rng = np.random.default_rng(1)
+    sigma = 3e-5
+    x = rng.normal(scale=sigma, size=200_000)
+    bp = np.asarray(band_power(x, BandSpec(n_bands=8, f_low=100)))
+    np.testing.assert_allclose(bp, 2 * sigma**2 / 1e4, rtol=0.1)
+
+
+def test_quantisation_floor_of_real_encoders():
+    # Quantising two irregular shaft motions the way the rig does gives the floor of eq. (8).
+    rng = np.random.default_rng(2)
+    t = np.arange(100_000) / 1e4
+    quantum = 2 * np.pi / 40000
+    th1 = 52.36 * t + rng.uniform(0, 7 * quantum, size=t.size)
+    th2 = th1 * 19 / 41 + rng.uniform(0, 7 * quantum, size=t.size)
+    c1 = np.floor(th1 * 40000 / (2 * np.pi))
+    c2 = np.floor(th2 * 40000 / (2 * np.pi))
+    d = 2 * np.pi / 40000 * (c1 - c2 * 41 / 19)
+    exact = th1 - th2 * 41 / 19
+    bp = np.asarray(band_power(d - exact, BandSpec(n_bands=6, f_low=200)))
+    np.testing.assert_allclose(bp, quantisation_floor(40000, 41 / 19, 1e4), rtol=0.15)
+
+
+def test_amplitude_spectrum_of_sinusoid():
+    t = np.arange(10000) / 1e4
+    f, a = amplitude_spectrum(2e-3 * np.sin(2 * np.pi * 50 * t), 1e4)
+    assert f[np.argmax(a)] == 50
+    assert float(np.max(a)) == pytest.approx(2e-3, rel=1e-9)
+
+
+def test_rattle_index_of_sinusoids():
+    # IGR of a sum of bin-centred sinusoids inside 20–5000 Hz is the sum of their amplitudes
+    # times the 1 Hz bin; a component outside the band does not count.
+    t = np.arange(30000) / 1e4
+    x = (
+        1e-3 * np.sin(2 * np.pi * 100 * t)
+        + 5e-4 * np.cos(2 * np.pi * 1234 * t)
+        + 1e-2 * np.sin(2 * np.pi * 8 * t)
+    )
+    assert float(rattle_index(x, 1e4)) == pytest.approx(1.5e-3, rel=1e-6)
+
+
+def test_bands_never_empty():
+    b = BandSpec(f_low=1.0, n_bands=64)
+    assert np.all(b.matrix.sum(axis=1) > 0.999)
+    assert len(b.centers) < 64
