@@ -286,7 +286,7 @@ class RattleModel(eqx.Module):
         so the driven gear never leaves the drive flank. Returns True when rattle is expected.
         """
         forcing = float(self.mass * self.r1) * drive.max_acceleration()
-        return forcing > float(params.drag_torque / self.r2)
+        return bool(forcing > float(params.drag_torque / self.r2))
 
 
 def relative_motion_from_q(q: ArrayLike, model: RattleModel) -> Array:

@@ -1,0 +1,119 @@
+"""The command line: clean errors, atomic outputs, and what it prints."""
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from rattlefit.cli import main
+from rattlefit.recording import read_recording, read_truth
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+
+
+def test_info_on_shared_recording(shared_recordings):
+    path = shared_recordings / "pairII_boundary_65.6_20pct_16Hz.h5"
+    result = CliRunner().invoke(main, ["info", str(path), "--json"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.output)
+    assert summary["gear_pair"]["teeth"] == [19, 41]
+    assert summary["operating"]["lubrication"] == "boundary"
+    assert summary["duration_s"] == pytest.approx(3.0)
+    assert summary["notes"] == []
+    # the paper's oil at 20 °C: the independent simulator's truth viscosity
+    assert summary["operating"]["viscosity_Pa_s"] == pytest.approx(0.4942, abs=1e-4)
+
+
+def test_info_text_names_igr_and_backlash():
+    result = CliRunner().invoke(main, ["info", str(DATA / "pairII_boundary_65.6_20pct_16Hz.h5")])
+    assert result.exit_code == 0, result.output
+    assert "IGR" in result.output and "backlash" in result.output
+
+
+def test_bad_file_gives_one_clean_message(tmp_path):
+    bad = tmp_path / "notes.h5"
+    bad.write_text("not an hdf5 file")
+    proc = subprocess.run(
+        [sys.executable, "-m", "rattlefit.cli", "info", str(bad)], capture_output=True, text=True
+    )
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    assert str(bad) in proc.stderr and proc.stderr.count("\n") == 1
+
+
+def test_missing_attribute_is_named(tmp_path, shared_recordings):
+    path = tmp_path / "r.h5"
+    shutil.copy(shared_recordings / "pairII_dry_65.6_20pct_16Hz.h5", path)
+    with h5py.File(path, "r+") as f:
+        del f["operating"].attrs["lubrication"]
+    result = CliRunner().invoke(main, ["info", str(path)])
+    assert result.exit_code == 2
+    assert "/operating@lubrication" in result.output
+
+
+def test_simulate_writes_valid_recording_with_truth(tmp_path):
+    out = tmp_path / "syn.h5"
+    args = [
+        "simulate",
+        "--pair",
+        "II",
+        "--center-distance",
+        "65.0",
+        "--fluctuation",
+        "10",
+        "--frequency",
+        "8",
+        "--film-half-length",
+        "0.085e-3",
+        "--drag-torque",
+        "0.025",
+        "--duration",
+        "1.0",
+        "--seed",
+        "7",
+        "-o",
+        str(out),
+    ]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    rec = read_recording(out)
+    truth = read_truth(out)
+    assert truth["film_half_length"] == pytest.approx(0.085e-3)
+    assert truth["seed"] == 7
+    assert rec.operating.drive_frequency_hz == 8.0
+    # the relative motion stays inside the backlash written in the file (plus contact
+    # deflection and quantisation), as on the rig
+    assert np.ptp(rec.relative_motion) < 1.1 * rec.gear_pair.angular_backlash_rad
+    # reproducible: same seed, same counts
+    again = tmp_path / "again.h5"
+    CliRunner().invoke(main, [*args[:-1], str(again)])
+    assert np.array_equal(read_recording(again).secondary, rec.secondary)
+
+
+def test_simulate_refuses_unphysical_and_keeps_old_output(tmp_path):
+    out = tmp_path / "syn.h5"
+    out.write_bytes(b"precious")
+    result = CliRunner().invoke(
+        main,
+        [
+            "simulate",
+            "--pair",
+            "II",
+            "--film-half-length",
+            "1e-4",
+            "--drag-torque",
+            "-1",
+            "-o",
+            str(out),
+        ],
+    )
+    assert result.exit_code == 2
+    assert "drag_torque" in result.output
+    assert out.read_bytes() == b"precious"
+    assert list(tmp_path.iterdir()) == [out]
