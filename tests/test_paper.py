@@ -51,7 +51,7 @@ def test_igr_grows_with_backlash(igr_table):
         values = [table[cd, lub] for cd in CENTRE_DISTANCES]
         assert values[-1] > 1.5 * values[0], (pair, lub, values)
         # monotone up to the chaotic scatter of a 3-run mean (~10 %)
-        assert all(b > 0.9 * a for a, b in zip(values, values[1:], strict=False)), (
+        assert all(b > 0.9 * a for a, b in itertools.pairwise(values)), (
             pair,
             lub,
             values,
