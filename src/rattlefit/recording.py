@@ -14,7 +14,8 @@ from __future__ import annotations
 import math
 import os
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -46,9 +47,7 @@ FORMAT_VERSION = 1
 TRUTH_GROUP = "/truth"
 MEMORY = "<memory>"
 
-# --------------------------------------------------------------------------------------------
-# Declarative schema
-# --------------------------------------------------------------------------------------------
+# --- Declarative schema ------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -155,9 +154,7 @@ _V1_FIELDS: tuple[FieldSpec, ...] = (
 SCHEMAS: dict[int, tuple[FieldSpec, ...]] = {1: _V1_FIELDS}
 """Schema of every supported ``format_version``: the table validation walks."""
 
-# --------------------------------------------------------------------------------------------
-# Data model
-# --------------------------------------------------------------------------------------------
+# --- Data model --------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -303,16 +300,19 @@ class Recording:
         return float(q / (2.0 * np.sqrt(3.0)) * np.sqrt(1.0 + self.gear_ratio**2))
 
 
-# --------------------------------------------------------------------------------------------
-# Validation
-# --------------------------------------------------------------------------------------------
+# --- Validation --------------------------------------------------------------------------------
 
 
-class _Unreadable:
-    """Placeholder for an attribute that exists but whose value could not be read."""
-
-    def __init__(self, exc: BaseException):
-        self.exc = exc
+@contextmanager
+def _guard(file: str, field: str) -> Iterator[None]:
+    """Turn any h5py/HDF5 failure (corrupt or truncated file) into a RecordingError."""
+    try:
+        yield
+    except RecordingError:
+        raise
+    except Exception as exc:  # h5py raises OSError, RuntimeError, KeyError, ValueError, ...
+        problem = f"cannot read (file truncated or corrupt?): {exc}"
+        raise RecordingError(file, field, problem) from None
 
 
 def _show(v: Any) -> str:
@@ -322,8 +322,8 @@ def _show(v: Any) -> str:
 def _coerce(raw: Any, spec: FieldSpec, file: str) -> str | int | float:
     """Normalise an attribute value (numpy scalar, bytes, size-1 array) to a Python value."""
     err = lambda problem: RecordingError(file, spec.path, problem)  # noqa: E731
-    if isinstance(raw, _Unreadable):
-        raise err(f"cannot read value (file truncated or corrupt?): {raw.exc}")
+    if isinstance(raw, Exception):  # stored by _raw_attrs for an unreadable value
+        raise err(f"cannot read value (file truncated or corrupt?): {raw}")
     if isinstance(raw, h5py.Empty):
         raise err("attribute has no value (empty dataspace)")
     if isinstance(raw, np.ndarray):
@@ -463,9 +463,7 @@ def check_recording(recording: Recording, file: str | None = None) -> None:
     _check_consistency(recording, file)
 
 
-# --------------------------------------------------------------------------------------------
-# Reading
-# --------------------------------------------------------------------------------------------
+# --- Reading -----------------------------------------------------------------------------------
 
 
 def _open(path: Path, file: str) -> h5py.File:
@@ -484,13 +482,16 @@ def _open(path: Path, file: str) -> h5py.File:
         raise RecordingError(file, "/", f"cannot open as HDF5: {msg}") from None
 
 
-def _raw_attrs(obj: h5py.Group) -> dict[str, Any]:
+def _raw_attrs(obj: h5py.Group, file: str) -> dict[str, Any]:
+    """Attributes of a group; an unreadable value is stored as its exception (reported only
+    if the schema needs that attribute)."""
     out: dict[str, Any] = {}
-    for name in obj.attrs:
-        try:
-            out[name] = obj.attrs[name]
-        except Exception as exc:  # unreadable values only matter if the schema needs them
-            out[name] = _Unreadable(exc)
+    with _guard(file, obj.name):
+        for name in obj.attrs:
+            try:
+                out[name] = obj.attrs[name]
+            except Exception as exc:
+                out[name] = exc
     return out
 
 
@@ -507,12 +508,8 @@ def _read_counts(f: h5py.File, spec: FieldSpec, file: str) -> np.ndarray:
         raise RecordingError(file, spec.path, f"dtype {ds.dtype} not allowed; must be int64/int32")
     if ds.ndim != 1:
         raise RecordingError(file, spec.path, f"must be 1-D, got shape {ds.shape}")
-    try:
+    with _guard(file, spec.path):
         return np.asarray(ds[()], dtype=np.int64)
-    except Exception as exc:
-        raise RecordingError(
-            file, spec.path, f"cannot read data (file truncated or corrupt?): {exc}"
-        ) from None
 
 
 def read_recording(path: str | os.PathLike[str]) -> Recording:
@@ -540,14 +537,11 @@ def read_recording(path: str | os.PathLike[str]) -> Recording:
         file (missing, not HDF5, truncated, missing field, wrong type or out of range).
     """
     file = os.fspath(path)
-    with _open(Path(file), file) as f:
-        try:
-            groups: dict[str, dict[str, Any] | None] = {"/": _raw_attrs(f)}
-            for group in {s.group for schema in SCHEMAS.values() for s in schema} - {"/"}:
-                obj = f.get(group)
-                groups[group] = _raw_attrs(obj) if isinstance(obj, h5py.Group) else None
-        except (OSError, RuntimeError, KeyError, ValueError) as exc:
-            raise RecordingError(file, "/", f"cannot read (truncated or corrupt?): {exc}") from None
+    with _open(Path(file), file) as f, _guard(file, "/"):
+        groups: dict[str, dict[str, Any] | None] = {"/": _raw_attrs(f, file)}
+        for group in {s.group for schema in SCHEMAS.values() for s in schema} - {"/"}:
+            obj = f.get(group)
+            groups[group] = _raw_attrs(obj, file) if isinstance(obj, h5py.Group) else None
         values = _validate_attrs(groups, file)
         schema = SCHEMAS[values["/"]["format_version"]]
         counts = {s.name: _read_counts(f, s, file) for s in schema if s.kind == "counts"}
@@ -573,12 +567,12 @@ def read_truth(path: str | os.PathLike[str]) -> dict[str, str | int | float] | N
     Returns ``None`` when the file has no such group. Values are plain Python str/int/float.
     """
     file = os.fspath(path)
-    with _open(Path(file), file) as f:
+    with _open(Path(file), file) as f, _guard(file, TRUTH_GROUP):
         obj = f.get(TRUTH_GROUP)
         if not isinstance(obj, h5py.Group):
             return None
         out: dict[str, str | int | float] = {}
-        for name, raw in _raw_attrs(obj).items():
+        for name, raw in _raw_attrs(obj, file).items():
             kind: Kind = "int" if isinstance(raw, np.integer) else "float"
             if isinstance(raw, str | bytes | np.bytes_):
                 kind = "str"
@@ -586,9 +580,7 @@ def read_truth(path: str | os.PathLike[str]) -> dict[str, str | int | float] | N
         return out
 
 
-# --------------------------------------------------------------------------------------------
-# Writing
-# --------------------------------------------------------------------------------------------
+# --- Writing -----------------------------------------------------------------------------------
 
 
 def _write_h5(rec: Recording, target: str, extra: Mapping[str, str | int | float]) -> None:
@@ -677,9 +669,7 @@ def write_recording(
     return dest
 
 
-# --------------------------------------------------------------------------------------------
-# Soft checks
-# --------------------------------------------------------------------------------------------
+# --- Soft checks -------------------------------------------------------------------------------
 
 
 def inspect_warnings(recording: Recording) -> list[str]:
