@@ -187,5 +187,58 @@ def simulate(**o) -> None:
     )
 
 
+@main.command()
+@click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the result as JSON here.",
+)
+@click.option(
+    "--plot",
+    "plot_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Write plots (PNG) into this directory.",
+)
+@click.option(
+    "--seed", type=int, default=0, show_default=True, help="Seeds realisations and starts."
+)
+@click.option(
+    "--realisations",
+    type=int,
+    default=4,
+    show_default=True,
+    help="Simulated realisations per evaluation.",
+)
+@click.option("--starts", type=int, default=8, show_default=True, help="Starting points evaluated.")
+@click.option(
+    "--drive", type=click.Choice(["measured", "commanded"]), default="measured", show_default=True
+)
+@click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
+@_clean_errors
+def identify(files, output, plot_dir, seed, realisations, starts, drive, quiet) -> None:
+    """Fit a, T_b and the viscosity to one recording, or jointly to several (one pair and
+    lubrication, e.g. a backlash sweep)."""
+    from ._util import atomic_write
+    from .fit import FitOptions
+    from .fit import identify as run
+    from .recording import read_recording
+    from .report import format_table, plot_fit
+
+    recordings = [read_recording(f) for f in files]
+    options = FitOptions(seed=seed, n_realisations=realisations, n_starts=starts, drive=drive)
+    say = None if quiet else (lambda msg: click.echo(f"  {msg}", err=True))
+    result = run(recordings, options, progress=say)
+    click.echo(format_table(result))
+    if output is not None:
+        text = json.dumps(result.to_json(), indent=2)
+        atomic_write(output, lambda tmp: tmp.write_text(text))
+        click.echo(f"wrote {output}", err=True)
+    if plot_dir is not None:
+        for path in plot_fit(result, recordings, plot_dir):
+            click.echo(f"wrote {path}", err=True)
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()

@@ -1,0 +1,658 @@
+"""Spectral least-squares identification of a, T_b and the effective viscosity.
+
+The paper tuned the oil-film half-length ``a`` by comparing measured and simulated FFT spectra
+by eye; :func:`identify` does it by least squares with optimistix's Levenberg–Marquardt, over
+
+* ``a`` (film half-length), ``drag_torque`` and the effective viscosity (as a factor on the
+  catalogue viscosity at each recording's temperature, reported in Pa s), and
+* the nuisance parameters a real rig needs: the mesh-stiffness scale, ``h_min`` and each
+  recording's backlash within its measurement uncertainty — fitted with their priors.
+
+Every parameter is bounded and fitted in an unconstrained coordinate ``z`` (logit of the log
+within its range: never clipped); parameters with a Gaussian prior on their log add a prior
+row to the residual, so the fit is a maximum a posteriori estimate.
+
+Rattle is chaotic, which shapes three choices:
+
+1. **Residual.** The measured log band PSDs are compared with the *mean* of ``M`` simulated
+   realisations (released from different, seeded positions in the gap), each band weighted by
+   the run-to-run spread of a single recording's features, estimated from simulations
+   (``σ² = s²_run (1 + 1/M)`` with a floor). The same seeded realisations are used at every
+   evaluation (common random numbers), so the objective is deterministic.
+2. **Jacobian.** Pathwise derivatives of a chaotic trajectory grow like e^{λt} (measured here:
+   forward-mode sensitivities of 3 s of rattle reach 1e65), so the Jacobian that the
+   Gauss–Newton model uses is a central difference of the ensemble-mean features at a finite
+   step (``fd_log_step`` in the log of each parameter), injected through ``jax.custom_jvp``.
+   It is the slope of the statistic that the data measure, at the resolution they can resolve.
+3. **Multi-start.** The cost is evaluated at a batch of seeded starting points over
+   (a, T_b); Levenberg–Marquardt runs from the best ones and the lowest cost wins.
+
+Uncertainty is the Laplace (Gauss–Newton) covariance ``(JᵀJ)⁻¹`` in ``z``, inflated by the
+reduced χ² of the data rows when that exceeds one, and mapped to 95 % intervals through the
+monotone transforms. A parameter whose interval runs into its prior range's end is reported as
+*not identified*, with the one-sided bound the data do support (e.g. ``a ≥ …`` under oil-jet
+lubrication, where the squeeze force saturates once a ≫ √(2 R h_min)).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable, Sequence
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+from .errors import RattlefitError
+from .model import RattleModel, RattleParams
+from .recording import Recording
+from .rig import RigSetup, setup
+from .simulate import _solve, _static_options
+from .spectra import spectral_features
+
+Z95 = 1.959963984540054
+
+
+@dataclasses.dataclass(frozen=True)
+class ParameterSpec:
+    """One fitted parameter: its range, optional log-normal prior and finite-difference step.
+
+    The value is ``lower · (upper/lower)^sigmoid(z)``. With ``center`` and ``log_sd`` the
+    residual gets the prior row ``(log v − log center) / log_sd``.
+    """
+
+    name: str
+    unit: str
+    lower: float
+    upper: float
+    center: float | None = None
+    log_sd: float | None = None
+    fd_log_step: float = 0.15
+    reported: bool = True
+
+    def __post_init__(self):
+        if not (0 < self.lower < self.upper):
+            raise RattlefitError(f"parameter {self.name}: need 0 < lower < upper")
+
+    @property
+    def log_range(self) -> float:
+        return math.log(self.upper / self.lower)
+
+    def value(self, z):
+        return self.lower * jnp.exp(self.log_range * jax.nn.sigmoid(z))
+
+    def z_of(self, value: float) -> float:
+        u = (math.log(value) - math.log(self.lower)) / self.log_range
+        u = min(max(u, 1e-6), 1 - 1e-6)
+        return math.log(u / (1 - u))
+
+    def dlog_dz(self, z: float) -> float:
+        s = 1.0 / (1.0 + math.exp(-z))
+        return self.log_range * s * (1 - s)
+
+
+@dataclasses.dataclass(frozen=True)
+class FitOptions:
+    """Options of :func:`identify` (all have working defaults).
+
+    n_realisations : M, simulated realisations averaged per evaluation.
+    dither : log-sd of the fixed, seeded offsets of ``a`` and ``drag_torque`` given to each
+        realisation (half of it for the viscosity). Rattle has periodic windows and coexisting
+        attractors, so its statistics jump between neighbouring parameter values; averaging
+        over a small neighbourhood makes the expected features, and the fit, well posed.
+    n_noise_realisations : realisations used to estimate each band's run-to-run spread (the
+        weights during the fit).
+    n_covariance_realisations : realisations used for the full band covariance at the
+        optimum (for the uncertainty).
+    n_starts : seeded starting points evaluated before Levenberg–Marquardt.
+    n_refine : how many of the best starts are refined.
+    max_iterations : Levenberg–Marquardt steps per start.
+    sigma_floor : lower bound on a band's standard deviation, log10 units.
+    seed : seeds the release positions and the starts (reported in the result).
+    rtol : simulator tolerance.
+    drive : ``"measured"`` (fit to the primary encoder) or ``"commanded"``.
+    priors : replacement :class:`ParameterSpec` by name.
+    """
+
+    n_realisations: int = 6
+    n_noise_realisations: int = 8
+    n_covariance_realisations: int = 24
+    n_starts: int = 8
+    n_refine: int = 1
+    max_iterations: int = 12
+    sigma_floor: float = 0.03
+    seed: int = 0
+    rtol: float = 1e-5
+    drive: str = "measured"
+    burn_in: float = 0.5
+    dither: float = 0.2
+    priors: dict = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass(frozen=True)
+class ParameterEstimate:
+    """A fitted parameter: estimate and 95 % interval (SI units).
+
+    When ``identified`` is False the data bound the parameter on one side only (``bound`` is
+    ``"lower"`` or ``"upper"``) or not at all (``bound`` is None), and ``estimate`` is None.
+    """
+
+    name: str
+    unit: str
+    estimate: float | None
+    lower: float
+    upper: float
+    identified: bool
+    bound: str | None = None
+    map_value: float | None = None
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class FitResult:
+    """What :func:`identify` returns."""
+
+    parameters: dict[str, ParameterEstimate]
+    correlation: np.ndarray
+    names: list[str]
+    chi2: float
+    dof: int
+    n_iterations: int
+    success: bool
+    message: str
+    seed: int
+    wall_time: float
+    recordings: list[str]
+    options: FitOptions
+    z: np.ndarray
+    covariance_z: np.ndarray
+    measured_features: list[np.ndarray]
+    fitted_features: list[np.ndarray]
+    sigma: list[np.ndarray]
+    band_centers: np.ndarray
+    map_params: list[dict[str, float]]
+
+    def rattle_params(self, k: int = 0) -> RattleParams:
+        """The MAP :class:`RattleParams` of recording ``k``."""
+        v = self.map_params[k]
+        return RattleParams(
+            v["film_half_length"],
+            v["drag_torque"],
+            v["viscosity"],
+            v["backlash"],
+            min_film=v["min_film"],
+            stiffness_scale=v["stiffness_scale"],
+        )
+
+    def to_json(self) -> dict:
+        """The ``--output`` document: parameters (SI) and fit diagnostics."""
+        return {
+            "parameters": {k: v.as_dict() for k, v in self.parameters.items()},
+            "fit": {
+                "chi2": self.chi2,
+                "dof": self.dof,
+                "reduced_chi2": self.chi2 / max(self.dof, 1),
+                "iterations": self.n_iterations,
+                "success": self.success,
+                "message": self.message,
+                "seed": self.seed,
+                "wall_time_s": self.wall_time,
+                "recordings": self.recordings,
+                "correlation": {"names": self.names, "matrix": self.correlation.tolist()},
+                "options": {
+                    k: v for k, v in dataclasses.asdict(self.options).items() if k != "priors"
+                },
+            },
+        }
+
+
+# -- the problem --------------------------------------------------------------------------
+
+
+def _stack(trees):
+    return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *trees)
+
+
+class _Problem(eqx.Module):
+    """Recordings, specs and the batched feature map (a pytree so it can be jitted)."""
+
+    models: RattleModel  # stacked over recordings
+    drives: object  # stacked Drive
+    y0: jax.Array  # (R, M, 2) release states
+    dither: jax.Array  # (M, P) fixed log-offsets of each realisation's parameters
+    floors: jax.Array  # (R,)
+    viscosities: jax.Array  # (R,) catalogue μ at each recording's temperature
+    data: jax.Array  # (R, B) measured features
+    sigma: jax.Array  # (R, B)
+    specs: tuple = eqx.field(static=True)
+    bands: object = eqx.field(static=True)
+    static: tuple = eqx.field(static=True)  # simulator options as sorted items
+
+    @property
+    def n_rec(self) -> int:
+        return self.y0.shape[0]
+
+    def params_for(self, z, r, dither):
+        """RattleParams of recording r from the unconstrained vector z (log-dithered)."""
+        v = {s.name: s.value(z[i]) * jnp.exp(dither[i]) for i, s in enumerate(self.specs)}
+        return RattleParams(
+            v["a"],
+            v["drag_torque"],
+            v["viscosity_scale"] * self.viscosities[r],
+            jnp.stack([v[f"backlash[{k}]"] for k in range(self.n_rec)])[r],
+            min_film=v["min_film"],
+            stiffness_scale=v["stiffness_scale"],
+        )
+
+    def features(self, zs):
+        """Features of every realisation for each row of ``zs`` (P,K): (K, R, M, B)."""
+        k, m = zs.shape[0], self.y0.shape[1]
+        opts = dict(self.static)
+        rows_z = jnp.repeat(zs, self.n_rec * m, axis=0)
+        rows_r = jnp.tile(jnp.repeat(jnp.arange(self.n_rec), m), k)
+        rows_y0 = jnp.tile(self.y0.reshape(-1, 2), (k, 1))
+        rows_d = jnp.tile(self.dither[: self.y0.shape[1]], (k * self.n_rec, 1))
+
+        def one(args):
+            z, r, y0, d = args
+            model = jax.tree_util.tree_map(lambda x: x[r], self.models)
+            drive = jax.tree_util.tree_map(lambda x: x[r], self.drives)
+            sol = _solve(model, self.params_for(z, r, d), drive, y0, **opts)
+            f = spectral_features(sol.relative_motion, self.bands, noise_floor=self.floors[r])
+            # a failed solve gives a far-off, finite feature vector: the step is rejected
+            return jnp.where(sol.result == 0, f, -30.0)
+
+        out = jax.lax.map(one, (rows_z, rows_r, rows_y0, rows_d))
+        return out.reshape(k, self.n_rec, m, -1)
+
+    def prior_rows(self, z):
+        rows = [
+            (jnp.log(s.value(z[i])) - math.log(s.center)) / s.log_sd
+            for i, s in enumerate(self.specs)
+            if s.log_sd is not None
+        ]
+        return jnp.stack(rows) if rows else jnp.zeros((0,))
+
+    def data_rows(self, mean_features):
+        return ((self.data - mean_features) / self.sigma).reshape(-1)
+
+    def fd_steps(self, z):
+        return jnp.asarray([s.fd_log_step for s in self.specs]) / jnp.stack(
+            [
+                s.log_range * jax.nn.sigmoid(z[i]) * (1 - jax.nn.sigmoid(z[i]))
+                for i, s in enumerate(self.specs)
+            ]
+        )
+
+
+def _residual_fn(problem: _Problem):
+    @jax.custom_jvp
+    def residual(z):
+        mean = problem.features(z[None])[0].mean(axis=1)
+        return jnp.concatenate([problem.data_rows(mean), problem.prior_rows(z)])
+
+    @residual.defjvp
+    def residual_jvp(primals, tangents):
+        (z,), (t,) = primals, tangents
+        h = problem.fd_steps(z)
+        eye = jnp.eye(z.shape[0])
+        # step towards the middle of each range, so the difference never leaves it
+        h = jnp.where(z > 0, -h, h)
+        points = jnp.concatenate([z[None], z + h[:, None] * eye])
+        feats = problem.features(points).mean(axis=2)  # (P+1, R, B)
+        d_mean = (feats[1:] - feats[0][None]) / h[:, None, None]  # (P, R, B)
+        p = z.shape[0]
+        j_data = -(d_mean / problem.sigma[None]).reshape(p, -1).T
+        j_prior = jax.jacfwd(problem.prior_rows)(z)
+        jac = jnp.concatenate([j_data, j_prior])
+        out = jnp.concatenate([problem.data_rows(feats[0]), problem.prior_rows(z)])
+        return out, jac @ t
+
+    return residual
+
+
+def _central_jacobian(problem: _Problem, z, *, scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """Residual and its central-difference Jacobian at ``scale`` × the fitting steps.
+
+    Used for the covariance: a wider, symmetric difference averages over the small-scale
+    ruggedness that a chaotic statistic has, where the fit's one-sided step need not.
+    """
+    p = z.shape[0]
+    h = problem.fd_steps(z) * scale
+    eye = jnp.eye(p)
+    points = jnp.concatenate([z[None], z + h[:, None] * eye, z - h[:, None] * eye])
+    feats = problem.features(points).mean(axis=2)
+    d_mean = (feats[1 : p + 1] - feats[p + 1 :]) / (2 * h[:, None, None])
+    j_data = -(d_mean / problem.sigma[None]).reshape(p, -1).T
+    jac = jnp.concatenate([j_data, jax.jacfwd(problem.prior_rows)(z)])
+    r = jnp.concatenate([problem.data_rows(feats[0]), problem.prior_rows(z)])
+    return np.asarray(r), np.asarray(jac)
+
+
+def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec, ...]:
+    """The fitted parameters with their prior ranges (SI units)."""
+    g = rigs[0].geometry
+    specs = [
+        ParameterSpec("a", "m", 1e-6, 5e-3, fd_log_step=0.2),
+        ParameterSpec("drag_torque", "N m", 2e-3, 0.5, fd_log_step=0.15),
+        ParameterSpec("viscosity_scale", "1", 0.2, 5.0, center=1.0, log_sd=0.25, fd_log_step=0.15),
+        ParameterSpec(
+            "stiffness_scale",
+            "1",
+            0.3,
+            3.0,
+            center=1.0,
+            log_sd=0.3,
+            fd_log_step=0.15,
+            reported=True,
+        ),
+        ParameterSpec("min_film", "m", 2e-6, 50e-6, center=10e-6, log_sd=0.7, fd_log_step=0.2),
+    ]
+    for k, rig in enumerate(rigs):
+        b = rig.geometry.backlash
+        sd = rig.geometry.backlash_std or 0.01 * b
+        rel = max(sd / b, 2e-3)
+        specs.append(
+            ParameterSpec(
+                f"backlash[{k}]",
+                "m",
+                b * (1 - 6 * rel),
+                b * (1 + 6 * rel),
+                center=b,
+                log_sd=rel,
+                fd_log_step=min(0.15, 1.5 * rel),
+            )
+        )
+    del g
+    return tuple(priors.get(s.name, s) for s in specs)
+
+
+def _build(
+    recordings: Sequence[Recording], options: FitOptions, rng
+) -> tuple[_Problem, list[RigSetup]]:
+    rigs = [setup(r, drive=options.drive) for r in recordings]
+    first = rigs[0]
+    for rig in rigs[1:]:
+        gp0, gp = first.recording.gear_pair, rig.recording.gear_pair
+        if (gp0.teeth_driving, gp0.teeth_driven) != (gp.teeth_driving, gp.teeth_driven):
+            raise RattlefitError(
+                f"{rig.recording.path}: /gear_pair: a joint fit needs one gear pair, but this "
+                f"file has z = {gp.teeth_driving}/{gp.teeth_driven} and "
+                f"{first.recording.path} has z = {gp0.teeth_driving}/{gp0.teeth_driven}"
+            )
+        if rig.recording.operating.lubrication != first.recording.operating.lubrication:
+            raise RattlefitError(
+                f"{rig.recording.path}: /operating@lubrication: a joint fit shares a, so all "
+                f"files need one lubrication; got {rig.recording.operating.lubrication!r} and "
+                f"{first.recording.operating.lubrication!r}"
+            )
+        if rig.sample_rate != first.sample_rate:
+            raise RattlefitError(
+                f"{rig.recording.path}: /encoders@sample_rate_hz: a joint fit needs one "
+                f"sample rate, got {rig.sample_rate} and {first.sample_rate} Hz"
+            )
+    n = min(r.recording.n_samples for r in rigs)
+    duration = n / first.sample_rate
+    m = options.n_realisations
+    y0 = np.zeros((len(rigs), m, 2))
+    for k, rig in enumerate(rigs):
+        c = 0.5 * rig.geometry.backlash
+        y0[k, :, 0] = rng.uniform(-0.9 * c, 0.9 * c, size=m)
+    data = []
+    for rig in rigs:
+        rm = rig.recording.relative_motion[:n]
+        data.append(np.asarray(spectral_features(rm, rig.bands)))
+    specs = default_specs(rigs, options.priors)
+    n_dither = max(m, options.n_noise_realisations, options.n_covariance_realisations)
+    weight = {"a": 1.0, "drag_torque": 1.0, "viscosity_scale": 0.5}
+    scale = np.array([weight.get(sp.name, 0.0) for sp in specs])
+    dither = rng.normal(size=(n_dither, len(specs))) * scale * options.dither
+    static = tuple(
+        sorted(
+            _static_options(
+                duration,
+                first.sample_rate,
+                options.burn_in,
+                options.rtol,
+                options.rtol * 1e-3,
+                200_000,
+                "forward",
+            ).items()
+        )
+    )
+    problem = _Problem(
+        models=_stack([r.model for r in rigs]),
+        drives=_stack([r.drive for r in rigs]),
+        y0=jnp.asarray(y0),
+        dither=jnp.asarray(dither),
+        floors=jnp.asarray([r.noise_floor for r in rigs]),
+        viscosities=jnp.asarray([r.viscosity for r in rigs]),
+        data=jnp.asarray(np.stack(data)),
+        sigma=jnp.ones((len(rigs), len(first.bands.centers))),
+        specs=specs,
+        bands=first.bands,
+        static=static,
+    )
+    return problem, rigs
+
+
+def _ensemble(problem: _Problem, z, n: int, rng) -> np.ndarray:
+    """Features of ``n`` extra seeded realisations at ``z``: (R, n, B)."""
+    c = 0.5 * np.asarray(
+        [float(s.value(z[i])) for i, s in enumerate(problem.specs) if s.name.startswith("backlash")]
+    )
+    y0 = np.zeros((problem.n_rec, n, 2))
+    y0[:, :, 0] = rng.uniform(-0.9, 0.9, size=(problem.n_rec, n)) * c[:, None]
+    extra = eqx.tree_at(lambda p: p.y0, problem, jnp.asarray(y0))
+    return np.asarray(extra.features(z[None])[0])
+
+
+def _band_sigma(ens: np.ndarray, m: int, floor: float) -> jax.Array:
+    """Per-band σ of the residual (data − mean of m): s_run² (1 + 1/m), floored."""
+    var = np.var(ens, axis=1, ddof=1) * (1.0 + 1.0 / m)
+    return jnp.asarray(np.sqrt(np.maximum(var, floor**2)))
+
+
+def shrunk_correlation(samples: np.ndarray) -> np.ndarray:
+    """Correlation matrix of ``samples`` (n, p) shrunk towards the identity.
+
+    Schäfer & Strimmer (2005), target D: the optimal shrinkage intensity
+    λ = Σ_{i≠j} Var(r_ij) / Σ_{i≠j} r_ij², clipped to [0, 1]. With fewer samples than bands
+    the sample correlation is singular; the shrunk one is positive definite.
+    """
+    n = samples.shape[0]
+    x = samples - samples.mean(axis=0)
+    sd = x.std(axis=0, ddof=1)
+    x = x / np.where(sd > 0, sd, 1.0)
+    w = x[:, :, None] * x[:, None, :]  # (n, p, p)
+    r = w.mean(axis=0) * n / (n - 1)
+    var_r = n / (n - 1) ** 3 * np.sum((w - w.mean(axis=0)) ** 2, axis=0)
+    off = ~np.eye(r.shape[0], dtype=bool)
+    denom = np.sum(r[off] ** 2)
+    lam = 1.0 if denom == 0 else float(np.clip(np.sum(var_r[off]) / denom, 0.0, 1.0))
+    out = (1 - lam) * r
+    np.fill_diagonal(out, 1.0)
+    return out
+
+
+def identify(
+    recordings: Sequence[Recording],
+    options: FitOptions | None = None,
+    *,
+    progress: Callable[[str], None] | None = None,
+) -> FitResult:
+    """Identify ``a``, ``drag_torque`` and the viscosity from one or more recordings.
+
+    Several recordings are fitted jointly: they share ``a``, ``drag_torque``, the viscosity
+    factor, the stiffness scale and ``h_min`` (one gear pair, one lubrication, e.g. a backlash
+    sweep as in the paper's Figs. 10–12); each has its own backlash.
+
+    ``progress`` receives one-line messages while the fit works.
+    """
+    options = options or FitOptions()
+    say = progress or (lambda msg: None)
+    t_start = time.perf_counter()
+    rng = np.random.default_rng(options.seed)
+    problem, rigs = _build(recordings, options, rng)
+    specs = problem.specs
+    p = len(specs)
+    names = [s.name for s in specs]
+    say(
+        f"{len(rigs)} recording(s), {p} parameters, {options.n_realisations} realisations "
+        f"per evaluation (seed {options.seed})"
+    )
+
+    # starting points: prior centres, with (a, T_b) from a seeded Latin hypercube
+    z_center = np.array([s.z_of(s.center) if s.center else 0.0 for s in specs])
+    starts = np.tile(z_center, (options.n_starts, 1))
+    for col, (lo, hi) in ((0, (5e-6, 2e-3)), (1, (5e-3, 0.2))):
+        u = (
+            rng.permutation(options.n_starts) + rng.uniform(size=options.n_starts)
+        ) / options.n_starts
+        vals = np.exp(np.log(lo) + u * math.log(hi / lo))
+        starts[:, col] = [specs[col].z_of(v) for v in vals]
+
+    say("estimating the run-to-run spread of the features …")
+    ens = _ensemble(problem, jnp.asarray(z_center), options.n_noise_realisations, rng)
+    sigma = _band_sigma(ens, options.n_realisations, options.sigma_floor)
+    problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
+
+    say(f"evaluating {options.n_starts} starting points (compiling the simulator first) …")
+    feats = jax.jit(lambda zs, q: q.features(zs))(jnp.asarray(starts), problem).mean(axis=2)
+    costs = [
+        float(
+            jnp.sum(problem.data_rows(feats[i]) ** 2)
+            + jnp.sum(problem.prior_rows(jnp.asarray(starts[i])) ** 2)
+        )
+        for i in range(options.n_starts)
+    ]
+    order = np.argsort(costs)
+    say("start costs: " + ", ".join(f"{costs[i]:.1f}" for i in order))
+
+    residual = _residual_fn(problem)
+    solver = optx.LevenbergMarquardt(rtol=1e-2, atol=1e-2)
+    best = None
+    for rank, i in enumerate(order[: options.n_refine]):
+        say(f"Levenberg–Marquardt from start {rank + 1}/{options.n_refine} (cost {costs[i]:.1f}) …")
+        sol = optx.least_squares(
+            lambda z, _: residual(z),
+            solver,
+            jnp.asarray(starts[i]),
+            max_steps=options.max_iterations,
+            throw=False,
+        )
+        z = np.asarray(sol.value)
+        cost = float(jnp.sum(residual(jnp.asarray(z)) ** 2))
+        steps = int(sol.stats["num_steps"])
+        ok = sol.result == optx.RESULTS.successful
+        say(
+            f"  → cost {cost:.2f} after {steps} steps "
+            f"({'converged' if ok else 'stopped at the step limit'})"
+        )
+        if best is None or cost < best[1]:
+            best = (z, cost, steps, bool(ok))
+    z, _, n_iter, converged = best
+
+    say("re-estimating the spread at the optimum and the Laplace covariance …")
+    ens = _ensemble(problem, jnp.asarray(z), options.n_covariance_realisations, rng)
+    sigma = _band_sigma(ens, options.n_realisations, options.sigma_floor)
+    problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
+    r, jac = _central_jacobian(problem, jnp.asarray(z), scale=1.5)
+    # generalised least squares: whiten the data rows with the shrunk band correlation of
+    # each recording (chaotic excursions move many bands together)
+    n_rec, n_band = problem.data.shape
+    n_data = n_rec * n_band
+    whiten = np.zeros((n_data, n_data))
+    for k in range(n_rec):
+        corr = shrunk_correlation(ens[k])
+        chol = np.linalg.cholesky(corr)
+        sl = slice(k * n_band, (k + 1) * n_band)
+        whiten[sl, sl] = np.linalg.inv(chol)
+    r_w = np.concatenate([whiten @ r[:n_data], r[n_data:]])
+    j_w = np.concatenate([whiten @ jac[:n_data], jac[n_data:]])
+    chi2 = float(np.sum(r_w[:n_data] ** 2))
+    n_free = sum(1 for s in specs if s.log_sd is None)
+    dof = max(n_data - n_free, 1)
+    inflate = max(1.0, chi2 / dof)
+    say(f"χ² = {chi2:.1f} on {dof} dof (band correlations included)")
+    cov = np.linalg.pinv(j_w.T @ j_w) * inflate
+    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+    corr = cov / np.outer(np.maximum(sd, 1e-300), np.maximum(sd, 1e-300))
+
+    mean = np.asarray(problem.features(jnp.asarray(z)[None])[0].mean(axis=1))
+    estimates = {}
+    for i, s in enumerate(specs):
+        estimates[s.name] = _estimate(s, z[i], sd[i], problem, i)
+    # report the viscosity in Pa s at the first recording's temperature
+    vs = estimates.pop("viscosity_scale")
+    mu0 = float(problem.viscosities[0])
+    estimates["viscosity"] = ParameterEstimate(
+        "viscosity",
+        "Pa s",
+        None if vs.estimate is None else vs.estimate * mu0,
+        vs.lower * mu0,
+        vs.upper * mu0,
+        vs.identified,
+        vs.bound,
+        vs.map_value * mu0,
+    )
+    ordered = {k: estimates[k] for k in ["a", "drag_torque", "viscosity"]}
+    ordered.update({k: v for k, v in estimates.items() if k not in ordered})
+    wall = time.perf_counter() - t_start
+    say(f"done in {wall:.1f} s")
+    return FitResult(
+        parameters=ordered,
+        correlation=corr,
+        names=names,
+        chi2=chi2,
+        dof=dof,
+        n_iterations=n_iter,
+        success=converged,
+        message="converged" if converged else "step limit reached; estimate is the last iterate",
+        seed=options.seed,
+        wall_time=wall,
+        recordings=[str(r.recording.path) for r in rigs],
+        options=options,
+        z=z,
+        covariance_z=cov,
+        measured_features=[np.asarray(d) for d in problem.data],
+        fitted_features=list(mean),
+        sigma=[np.asarray(s) for s in sigma],
+        band_centers=problem.bands.centers,
+        map_params=[
+            {
+                k: float(v)
+                for k, v in problem.params_for(jnp.asarray(z), i, jnp.zeros(p)).as_dict().items()
+            }
+            for i in range(problem.n_rec)
+        ],
+    )
+
+
+def _estimate(
+    spec: ParameterSpec, z: float, sd: float, problem: _Problem, i: int
+) -> ParameterEstimate:
+    """95 % interval through the transform; one-sided when it runs into the range's end."""
+    lo_z, hi_z = z - Z95 * sd, z + Z95 * sd
+    value = float(spec.value(z))
+    lower, upper = float(spec.value(lo_z)), float(spec.value(hi_z))
+    edge = 0.05  # within 5 % of the log range of an end counts as "runs into it"
+    u_lo = (math.log(lower) - math.log(spec.lower)) / spec.log_range
+    u_hi = (math.log(upper) - math.log(spec.lower)) / spec.log_range
+    at_top, at_bottom = u_hi > 1 - edge, u_lo < edge
+    wide = math.log(upper / lower) > math.log(10.0)
+    if spec.log_sd is None and (at_top or at_bottom or wide):
+        if at_top and not at_bottom:
+            return ParameterEstimate(
+                spec.name, spec.unit, None, lower, spec.upper, False, "lower", value
+            )
+        if at_bottom and not at_top:
+            return ParameterEstimate(spec.name, spec.unit, None, 0.0, upper, False, "upper", value)
+        return ParameterEstimate(spec.name, spec.unit, None, 0.0, spec.upper, False, None, value)
+    return ParameterEstimate(spec.name, spec.unit, value, lower, upper, True, None, value)

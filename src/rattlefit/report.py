@@ -1,0 +1,143 @@
+"""Plots and tables of an identification: where a person would rather look than read."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from ._util import atomic_write
+from .fit import FitResult
+from .recording import Recording
+from .rig import setup
+from .simulate import simulate
+from .spectra import welch_psd
+
+#: Display units of the parameters: (SI multiplier, label).
+DISPLAY = {"m": (1e3, "mm"), "N m": (1.0, "N m"), "Pa s": (1.0, "Pa s"), "1": (1.0, "")}
+
+
+def format_table(result: FitResult) -> str:
+    """The parameters as a readable table (estimate, 95 % interval, unit, identified)."""
+    rows = [("parameter", "estimate", "95 % interval", "unit", "identified")]
+    for name, p in result.parameters.items():
+        mult, unit = DISPLAY.get(p.unit, (1.0, p.unit))
+        if p.identified:
+            est = f"{p.estimate * mult:.4g}"
+            ci = f"[{p.lower * mult:.4g}, {p.upper * mult:.4g}]"
+            ident = "yes"
+        elif p.bound == "lower":
+            est, ci, ident = f"≥ {p.lower * mult:.4g}", "(bound)", "no: lower bound only"
+        elif p.bound == "upper":
+            est, ci, ident = f"≤ {p.upper * mult:.4g}", "(bound)", "no: upper bound only"
+        else:
+            est, ci, ident = "—", f"[{p.lower * mult:.4g}, {p.upper * mult:.4g}]", "no"
+        rows.append((name, est, ci, unit, ident))
+    widths = [max(len(r[i]) for r in rows) for i in range(5)]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    lines.append(
+        f"χ² = {result.chi2:.1f} on {result.dof} dof; {result.n_iterations} Levenberg–Marquardt "
+        f"steps; seed {result.seed}; {result.wall_time:.1f} s"
+    )
+    return "\n".join(lines)
+
+
+def _save(fig, path: Path) -> Path:
+    def write(tmp: Path) -> None:
+        fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight")
+
+    atomic_write(path, write)
+    plt.close(fig)
+    return path
+
+
+def plot_fit(result: FitResult, recordings: list[Recording], directory: str | Path) -> list[Path]:
+    """Measured vs fitted spectra and time histories, and the parameter correlations."""
+    directory = Path(directory)
+    out = []
+    for k, rec in enumerate(recordings):
+        rig = setup(rec, drive=result.options.drive)
+        sol = simulate(
+            rig.model,
+            result.rattle_params(k),
+            rig.drive,
+            duration=rec.duration,
+            sample_rate=rec.sample_rate_hz,
+            rtol=result.options.rtol,
+            atol=result.options.rtol * 1e-3,
+        )
+        fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 8))
+        f = rig.bands.frequencies
+        measured = np.asarray(
+            welch_psd(rec.relative_motion, rig.sample_rate, rig.bands.segment_length)
+        )
+        simulated = (
+            np.asarray(welch_psd(sol.relative_motion, rig.sample_rate, rig.bands.segment_length))
+            + rig.noise_floor
+        )
+        ax1.loglog(f[1:], measured[1:], color="0.6", lw=0.8, label="measured (Welch PSD)")
+        ax1.loglog(
+            f[1:], simulated[1:], color="C1", lw=0.8, alpha=0.7, label="one fitted realisation"
+        )
+        c = result.band_centers
+        err = 2 * result.sigma[k]
+        ax1.errorbar(
+            c,
+            10 ** result.measured_features[k],
+            yerr=[
+                10 ** result.measured_features[k] * (1 - 10**-err),
+                10 ** result.measured_features[k] * (10**err - 1),
+            ],
+            fmt="o",
+            ms=3,
+            color="k",
+            label="measured bands ±2σ",
+        )
+        ax1.plot(
+            c,
+            10 ** result.fitted_features[k],
+            "s-",
+            ms=3,
+            color="C0",
+            label="fitted mean of realisations",
+        )
+        ax1.axhline(
+            rig.noise_floor, color="0.3", ls=":", lw=0.8, label="encoder quantisation floor"
+        )
+        ax1.set_xlabel("frequency (Hz)")
+        ax1.set_ylabel("PSD of Δθ* (rad²/Hz)")
+        ax1.set_title(Path(rec.path or f"recording {k}").name)
+        ax1.legend(fontsize=8)
+        t = rec.time
+        n = min(len(t), int(0.5 * rec.sample_rate_hz))
+        ax2.plot(t[:n], rec.relative_motion[:n] * 1e3, color="k", lw=0.8, label="measured")
+        sim = np.asarray(sol.relative_motion)
+        ax2.plot(
+            t[:n],
+            (sim[:n] - np.median(sim)) * 1e3,
+            color="C1",
+            lw=0.8,
+            alpha=0.8,
+            label="fitted model (one realisation: rattle is chaotic, compare character, not phase)",
+        )
+        ax2.set_xlabel("time (s)")
+        ax2.set_ylabel("Δθ* (mrad)")
+        ax2.legend(fontsize=8, loc="lower right")
+        out.append(_save(fig, directory / f"fit_{k}_{Path(rec.path or 'recording').stem}.png"))
+    names = result.names
+    fig, ax = plt.subplots(figsize=(1.0 + 0.6 * len(names), 0.8 + 0.6 * len(names)))
+    im = ax.imshow(result.correlation, vmin=-1, vmax=1, cmap="RdBu_r")
+    ax.set_xticks(range(len(names)), names, rotation=45, ha="right")
+    ax.set_yticks(range(len(names)), names)
+    for i in range(len(names)):
+        for j in range(len(names)):
+            ax.text(j, i, f"{result.correlation[i, j]:.2f}", ha="center", va="center", fontsize=7)
+    fig.colorbar(im, ax=ax, label="correlation")
+    ax.set_title("parameter correlations (Laplace)")
+    out.append(_save(fig, directory / "correlation.png"))
+    return out
