@@ -117,3 +117,46 @@ def test_simulate_refuses_unphysical_and_keeps_old_output(tmp_path):
     assert "drag_torque" in result.output
     assert out.read_bytes() == b"precious"
     assert list(tmp_path.iterdir()) == [out]
+
+
+def test_identify_writes_json_and_plots(tmp_path):
+    out = tmp_path / "result.json"
+    plots = tmp_path / "plots"
+    path = DATA / "pairII_boundary_65.6_20pct_16Hz.h5"
+    result = CliRunner().invoke(
+        main,
+        [
+            "identify",
+            str(path),
+            "--realisations",
+            "2",
+            "--starts",
+            "2",
+            "-q",
+            "-o",
+            str(out),
+            "--plot",
+            str(plots),
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    assert "drag_torque" in result.output and "95 % interval" in result.output
+    doc = json.loads(out.read_text())
+    for name, unit in (("a", "m"), ("drag_torque", "N m"), ("viscosity", "Pa s")):
+        p = doc["parameters"][name]
+        assert p["unit"] == unit
+        assert p["lower"] <= p["upper"]
+        assert p["estimate"] is None or p["lower"] <= p["estimate"] <= p["upper"]
+    assert doc["fit"]["seed"] == 0
+    pngs = sorted(x.name for x in plots.iterdir())
+    assert "correlation.png" in pngs and any(x.startswith("fit_0_") for x in pngs)
+    assert not list(tmp_path.glob("**/*.tmp"))
+
+
+def test_identify_bad_file_is_one_clean_error(tmp_path):
+    bad = tmp_path / "x.h5"
+    bad.write_bytes(b"\x89HDF\r\n\x1a\n" + b"\0" * 20)  # an HDF5 signature, then nothing
+    result = CliRunner().invoke(main, ["identify", str(bad), "-o", str(tmp_path / "r.json")])
+    assert result.exit_code == 2
+    assert str(bad) in result.output
+    assert not (tmp_path / "r.json").exists()

@@ -109,7 +109,9 @@ class FitOptions:
     n_covariance_realisations : realisations used for the full band covariance at the
         optimum (for the uncertainty).
     n_starts : seeded starting points evaluated before Levenberg–Marquardt.
-    n_refine : how many of the best starts are refined.
+    n_refine : how many of the best starts are refined. Every refined optimum whose cost is
+        within the statistic's own fluctuation scale √(2·dof) of the best is an equally good
+        explanation of the data, and the reported intervals span all of them.
     max_iterations : Levenberg–Marquardt steps per start.
     sigma_floor : lower bound on a band's standard deviation, log10 units.
     seed : seeds the release positions and the starts (reported in the result).
@@ -122,7 +124,7 @@ class FitOptions:
     n_noise_realisations: int = 8
     n_covariance_realisations: int = 24
     n_starts: int = 8
-    n_refine: int = 1
+    n_refine: int = 3
     max_iterations: int = 12
     sigma_floor: float = 0.03
     seed: int = 0
@@ -537,7 +539,7 @@ def identify(
 
     residual = _residual_fn(problem)
     solver = optx.LevenbergMarquardt(rtol=1e-2, atol=1e-2)
-    best = None
+    optima = []
     for rank, i in enumerate(order[: options.n_refine]):
         say(f"Levenberg–Marquardt from start {rank + 1}/{options.n_refine} (cost {costs[i]:.1f}) …")
         sol = optx.least_squares(
@@ -555,40 +557,55 @@ def identify(
             f"  → cost {cost:.2f} after {steps} steps "
             f"({'converged' if ok else 'stopped at the step limit'})"
         )
-        if best is None or cost < best[1]:
-            best = (z, cost, steps, bool(ok))
-    z, _, n_iter, converged = best
+        optima.append((cost, z, steps, bool(ok)))
+    optima.sort(key=lambda o: o[0])
+    best_cost, z, n_iter, converged = optima[0]
+    n_data_rows = int(np.prod(problem.data.shape))
+    tolerance = math.sqrt(2.0 * n_data_rows)
+    rivals = [
+        o[1] for o in optima[1:] if o[0] - best_cost < tolerance and np.max(np.abs(o[1] - z)) > 0.05
+    ]
+    if rivals:
+        say(f"{len(rivals)} other optimum(s) within Δcost < {tolerance:.1f}: intervals span them")
 
     say("re-estimating the spread at the optimum and the Laplace covariance …")
     ens = _ensemble(problem, jnp.asarray(z), options.n_covariance_realisations, rng)
     sigma = _band_sigma(ens, options.n_realisations, options.sigma_floor)
     problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
-    r, jac = _central_jacobian(problem, jnp.asarray(z), scale=1.5)
     # generalised least squares: whiten the data rows with the shrunk band correlation of
     # each recording (chaotic excursions move many bands together)
     n_rec, n_band = problem.data.shape
     n_data = n_rec * n_band
     whiten = np.zeros((n_data, n_data))
     for k in range(n_rec):
-        corr = shrunk_correlation(ens[k])
-        chol = np.linalg.cholesky(corr)
+        chol = np.linalg.cholesky(shrunk_correlation(ens[k]))
         sl = slice(k * n_band, (k + 1) * n_band)
         whiten[sl, sl] = np.linalg.inv(chol)
-    r_w = np.concatenate([whiten @ r[:n_data], r[n_data:]])
-    j_w = np.concatenate([whiten @ jac[:n_data], jac[n_data:]])
-    chi2 = float(np.sum(r_w[:n_data] ** 2))
     n_free = sum(1 for s in specs if s.log_sd is None)
     dof = max(n_data - n_free, 1)
-    inflate = max(1.0, chi2 / dof)
+
+    def laplace(zk):
+        r, jac = _central_jacobian(problem, jnp.asarray(zk), scale=1.5)
+        r_w = np.concatenate([whiten @ r[:n_data], r[n_data:]])
+        j_w = np.concatenate([whiten @ jac[:n_data], jac[n_data:]])
+        chi2_k = float(np.sum(r_w[:n_data] ** 2))
+        cov_k = np.linalg.pinv(j_w.T @ j_w) * max(1.0, chi2_k / dof)
+        return chi2_k, cov_k
+
+    chi2, cov = laplace(z)
     say(f"χ² = {chi2:.1f} on {dof} dof (band correlations included)")
-    cov = np.linalg.pinv(j_w.T @ j_w) * inflate
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     corr = cov / np.outer(np.maximum(sd, 1e-300), np.maximum(sd, 1e-300))
+    # each rival optimum widens the intervals to cover its own 95 % interval
+    z_lo, z_hi = z - Z95 * sd, z + Z95 * sd
+    for zr in rivals:
+        sd_r = np.sqrt(np.clip(np.diag(laplace(zr)[1]), 0, None))
+        z_lo, z_hi = np.minimum(z_lo, zr - Z95 * sd_r), np.maximum(z_hi, zr + Z95 * sd_r)
 
     mean = np.asarray(problem.features(jnp.asarray(z)[None])[0].mean(axis=1))
     estimates = {}
     for i, s in enumerate(specs):
-        estimates[s.name] = _estimate(s, z[i], sd[i], problem, i)
+        estimates[s.name] = _estimate(s, z[i], z_lo[i], z_hi[i])
     # report the viscosity in Pa s at the first recording's temperature
     vs = estimates.pop("viscosity_scale")
     mu0 = float(problem.viscosities[0])
@@ -635,11 +652,8 @@ def identify(
     )
 
 
-def _estimate(
-    spec: ParameterSpec, z: float, sd: float, problem: _Problem, i: int
-) -> ParameterEstimate:
+def _estimate(spec: ParameterSpec, z: float, lo_z: float, hi_z: float) -> ParameterEstimate:
     """95 % interval through the transform; one-sided when it runs into the range's end."""
-    lo_z, hi_z = z - Z95 * sd, z + Z95 * sd
     value = float(spec.value(z))
     lower, upper = float(spec.value(lo_z)), float(spec.value(hi_z))
     edge = 0.05  # within 5 % of the log range of an end counts as "runs into it"
