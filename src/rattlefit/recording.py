@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass
@@ -24,7 +23,9 @@ import h5py
 import numpy as np
 import numpy.typing as npt
 
+from rattlefit._util import atomic_write
 from rattlefit.errors import RecordingError
+from rattlefit.spectra import quantisation_std
 
 __all__ = [
     "FORMAT_NAME",
@@ -292,12 +293,8 @@ class Recording:
 
     @property
     def quantisation_std(self) -> float:
-        """Standard deviation of encoder quantisation noise in Δθ*, eq. (8) (rad).
-
-        (1 / (2√3)) · (2π / counts_per_rev) · sqrt(1 + (z2/z1)²).
-        """
-        q = 2.0 * np.pi / self.counts_per_rev
-        return float(q / (2.0 * np.sqrt(3.0)) * np.sqrt(1.0 + self.gear_ratio**2))
+        """Standard deviation of encoder quantisation noise in Δθ*, eq. (8) (rad)."""
+        return quantisation_std(self.counts_per_rev, self.gear_ratio)
 
 
 # --- Validation --------------------------------------------------------------------------------
@@ -644,28 +641,12 @@ def write_recording(
             )
     if not overwrite and dest.exists():
         raise RecordingError(file, "/", "file exists and overwrite=False")
+    if not dest.parent.is_dir():
+        raise RecordingError(file, "/", f"directory {dest.parent} does not exist")
     try:
-        with tempfile.NamedTemporaryFile(
-            delete=False, dir=dest.parent, prefix=f".{dest.name}.", suffix=".tmp"
-        ) as tmp:
-            tmp_name = tmp.name
+        atomic_write(dest, lambda tmp: _write_h5(recording, os.fspath(tmp), extra))
     except OSError as exc:
-        raise RecordingError(file, "/", f"cannot create a file in {dest.parent}: {exc}") from None
-    try:
-        _write_h5(recording, tmp_name, extra)
-        with open(tmp_name, "rb+") as fh:
-            os.fsync(fh.fileno())
-        if dest.exists():
-            mode = dest.stat().st_mode & 0o777
-        else:
-            umask = os.umask(0)
-            os.umask(umask)
-            mode = 0o666 & ~umask
-        os.chmod(tmp_name, mode)
-        os.replace(tmp_name, dest)
-    except BaseException:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise
+        raise RecordingError(file, "/", f"cannot write the file: {exc}") from None
     return dest
 
 
