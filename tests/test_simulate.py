@@ -195,3 +195,22 @@ def test_forward_sensitivity_is_finite(pair2):
     jac = jax.jacfwd(features)(jnp.log(0.085e-3))
     assert np.all(np.isfinite(np.asarray(jac)))
     assert float(jnp.max(jnp.abs(jac))) > 0.0
+
+
+def test_quantised_output_has_eq8_resolution(pair2):
+    from rattlefit.simulate import quantised_relative_motion
+    from rattlefit.spectra import quantisation_std
+
+    model = rf.RattleModel.from_geometry(pair2)
+    drive = rf.Drive.commanded(52.36, 10.472, 16.0)
+    p = rf.RattleParams(0.085e-3, 0.025, 0.49, pair2.backlash)
+    sol = rf.simulate(model, p, drive, duration=1.0)
+    measured = quantised_relative_motion(sol, model)
+    exact = np.asarray(sol.relative_motion) - float(sol.relative_motion[0])
+    err = measured - exact
+    err -= err.mean()
+    # eq. (8): (1/(2√3)) (2π/40000) √(1 + (z2/z1)²), by hand for pair II (z = 19/41)
+    by_hand = (2 * np.pi / 40000) / (2 * np.sqrt(3)) * np.sqrt(1 + (41 / 19) ** 2)
+    assert quantisation_std(40000, 41 / 19) == pytest.approx(by_hand)
+    assert np.std(err) == pytest.approx(by_hand, rel=0.1)
+    assert np.max(np.abs(err)) < 2 * 2 * np.pi / 40000 * (1 + 41 / 19)

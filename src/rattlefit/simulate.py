@@ -250,3 +250,17 @@ def encoder_counts(
     theta2 = (q + float(model.r1) * theta1) / float(model.r2)
     scale = counts_per_rev / (2.0 * np.pi)
     return np.floor(theta1 * scale).astype(np.int64), np.floor(theta2 * scale).astype(np.int64)
+
+
+def quantised_relative_motion(
+    solution: Solution, model: RattleModel, *, counts_per_rev: int = 40_000
+) -> np.ndarray:
+    """Δθ* as the rig measures it: from the two quantised encoders, eq. (6), rad.
+
+    θ1 and θ2 are quantised with :func:`encoder_counts` and combined as
+    ``θ1 − θ2·r2/r1``; the error has the standard deviation of eq. (8).
+    """
+    primary, secondary = encoder_counts(solution, model, counts_per_rev=counts_per_rev)
+    step = 2.0 * np.pi / counts_per_rev
+    ratio = float(model.r2) / float(model.r1)
+    return step * (primary - primary[..., :1]) - step * ratio * (secondary - secondary[..., :1])
