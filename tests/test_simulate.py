@@ -214,3 +214,35 @@ def test_quantised_output_has_eq8_resolution(pair2):
     assert quantisation_std(40000, 41 / 19) == pytest.approx(by_hand)
     assert np.std(err) == pytest.approx(by_hand, rel=0.1)
     assert np.max(np.abs(err)) < 2 * 2 * np.pi / 40000 * (1 + 41 / 19)
+
+
+def test_effects_plug_in(pair2):
+    # The Effect contract: an extra force of −ΔT/r2 is extra drag; a constant gap error δ
+    # shifts the flanks, i.e. the motion q by δ.
+    import jax.numpy as jnp
+
+    class ExtraDrag(rf.Effect):
+        torque: float
+
+        def force(self, t, q, v, model, params, drive):
+            return -self.torque / model.r2
+
+    class Offset(rf.Effect):
+        delta: float
+
+        def gap_error(self, t, theta1, model, params, drive):
+            return jnp.asarray(self.delta)
+
+    drive = rf.Drive.commanded(52.36, 10.472, 16.0)
+    base = rf.RattleModel.from_geometry(pair2)
+    opts = dict(duration=0.05, burn_in=0.0, rtol=1e-10, atol=1e-14)
+    c = pair2.backlash / 2
+    p = rf.RattleParams(0.085e-3, 0.02, 0.49, pair2.backlash)
+    more = rf.RattleParams(0.085e-3, 0.03, 0.49, pair2.backlash)
+    a = rf.simulate(base.with_effects(ExtraDrag(0.01)), p, drive, y0=[-c, 0.0], **opts)
+    b = rf.simulate(base, more, drive, y0=[-c, 0.0], **opts)
+    np.testing.assert_allclose(np.asarray(a.q), np.asarray(b.q), atol=1e-12)
+    d = 20e-6
+    shifted = rf.simulate(base.with_effects(Offset(d)), p, drive, y0=[-c + d, 0.0], **opts)
+    plain = rf.simulate(base, p, drive, y0=[-c, 0.0], **opts)
+    np.testing.assert_allclose(np.asarray(shifted.q) - d, np.asarray(plain.q), atol=1e-11)

@@ -287,13 +287,3 @@ class RattleModel(eqx.Module):
         """
         forcing = float(self.mass * self.r1) * drive.max_acceleration()
         return bool(forcing > float(params.drag_torque / self.r2))
-
-
-def relative_motion_from_q(q: ArrayLike, model: RattleModel) -> Array:
-    """Δθ* = −q / r1 (eq. 6), rad."""
-    return -jnp.asarray(q) / model.r1
-
-
-def default_params(geometry: GearGeometry, *, film_half_length, drag_torque, viscosity, **kw):
-    """:class:`RattleParams` with the backlash taken from the geometry."""
-    return RattleParams(film_half_length, drag_torque, viscosity, geometry.backlash, **kw)
