@@ -206,13 +206,7 @@ def step_forward(args):
         c = s.geometry.backlash / 2
         res = {}
         for rtol in RTOLS:
-            opts = dict(
-                duration=DURATION,
-                sample_rate=s.sample_rate,
-                burn_in=BURN_IN,
-                rtol=rtol,
-                atol=_atol(rtol),
-            )
+            opts = _sim_options(s, rtol)
             y0s = [jnp.asarray([frac * c, 0.0]) for frac in _release_fractions(M)]
             first = None
             if str(rtol) not in compile_s:  # first call at this rtol: compile + one run
@@ -242,6 +236,13 @@ def step_forward(args):
     return {"points": out, "compile_s": compile_s}
 
 
+def _sim_options(s, rtol):
+    """simulate() options of every timed run: the recording's rate, matched tolerances."""
+    return dict(
+        duration=DURATION, sample_rate=s.sample_rate, burn_in=BURN_IN, rtol=rtol, atol=_atol(rtol)
+    )
+
+
 def step_paired(args):
     """Reference and rattlefit (matched rtol) alternately in one process, same release states.
 
@@ -255,13 +256,7 @@ def step_paired(args):
     out = {}
     for name, s, truth in _operating_points(args["names"]):
         rtol = args["rtol"][name]
-        opts = dict(
-            duration=DURATION,
-            sample_rate=s.sample_rate,
-            burn_in=BURN_IN,
-            rtol=rtol,
-            atol=_atol(rtol),
-        )
+        opts = _sim_options(s, rtol)
         params = _truth_params(s, truth)
         c = s.geometry.backlash / 2
         t_ref, t_rf = [], []
@@ -305,13 +300,7 @@ def step_batch(args):
     out = {}
     for name, s, truth in _operating_points(args["names"]):
         rtol = args["rtol"][name]
-        opts = dict(
-            duration=DURATION,
-            sample_rate=s.sample_rate,
-            burn_in=BURN_IN,
-            rtol=rtol,
-            atol=_atol(rtol),
-        )
+        opts = _sim_options(s, rtol)
         params = _truth_params(s, truth)
         c = s.geometry.backlash / 2
         # the single simulation in this same process, as the yardstick of the batched ones
