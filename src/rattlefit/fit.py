@@ -72,7 +72,6 @@ class ParameterSpec:
     center: float | None = None
     log_sd: float | None = None
     fd_log_step: float = 0.15
-    reported: bool = True
 
     def __post_init__(self):
         if not (0 < self.lower < self.upper):
@@ -338,8 +337,7 @@ def _central_jacobian(problem: _Problem, z, *, scale: float) -> tuple[np.ndarray
 
 
 def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec, ...]:
-    """The fitted parameters with their prior ranges (SI units)."""
-    g = rigs[0].geometry
+    """The fitted parameters with their prior ranges (SI units); ``priors`` replaces by name."""
     specs = [
         ParameterSpec("a", "m", 1e-6, 5e-3, fd_log_step=0.2),
         ParameterSpec("drag_torque", "N m", 2e-3, 0.5, fd_log_step=0.15),
@@ -352,7 +350,6 @@ def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec
             center=1.0,
             log_sd=0.3,
             fd_log_step=0.15,
-            reported=True,
         ),
         ParameterSpec("min_film", "m", 2e-6, 50e-6, center=10e-6, log_sd=0.7, fd_log_step=0.2),
     ]
@@ -371,7 +368,6 @@ def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec
                 fd_log_step=min(0.15, 1.5 * rel),
             )
         )
-    del g
     return tuple(priors.get(s.name, s) for s in specs)
 
 
