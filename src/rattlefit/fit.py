@@ -89,8 +89,9 @@ class ParameterSpec:
         u = min(max(u, 1e-6), 1 - 1e-6)
         return math.log(u / (1 - u))
 
-    def dlog_dz(self, z: float) -> float:
-        s = 1.0 / (1.0 + math.exp(-z))
+    def dlog_dz(self, z):
+        """d(log value)/dz: converts a step in log value into a step in z."""
+        s = jax.nn.sigmoid(z)
         return self.log_range * s * (1 - s)
 
 
@@ -284,12 +285,33 @@ class _Problem(eqx.Module):
         return ((self.data - mean_features) / self.sigma).reshape(-1)
 
     def fd_steps(self, z):
-        return jnp.asarray([s.fd_log_step for s in self.specs]) / jnp.stack(
-            [
-                s.log_range * jax.nn.sigmoid(z[i]) * (1 - jax.nn.sigmoid(z[i]))
-                for i, s in enumerate(self.specs)
-            ]
-        )
+        """Steps in z that change each parameter's log by its ``fd_log_step``."""
+        return jnp.stack([s.fd_log_step / s.dlog_dz(z[i]) for i, s in enumerate(self.specs)])
+
+
+def _fd_jacobian(problem: _Problem, z, h, *, central: bool):
+    """Residual at ``z`` and its finite-difference Jacobian with steps ``h`` (in z).
+
+    All points are simulated in one batched call (common random numbers). Forward
+    differences when ``central`` is False, else central; the prior rows are differentiated
+    exactly.
+    """
+    p = z.shape[0]
+    eye = jnp.eye(p)
+    points = [z[None], z + h[:, None] * eye] + ([z - h[:, None] * eye] if central else [])
+    feats = problem.features(jnp.concatenate(points)).mean(axis=2)  # (K, R, B)
+    lower = feats[p + 1 :] if central else feats[0][None]
+    d_mean = (feats[1 : p + 1] - lower) / ((2 if central else 1) * h[:, None, None])
+    j_data = -(d_mean / problem.sigma[None]).reshape(p, -1).T
+    jac = jnp.concatenate([j_data, jax.jacfwd(problem.prior_rows)(z)])
+    r = jnp.concatenate([problem.data_rows(feats[0]), problem.prior_rows(z)])
+    return r, jac
+
+
+@eqx.filter_jit
+def _batched_features(problem: _Problem, zs):
+    """``problem.features`` compiled once per problem shape, reused across calls."""
+    return problem.features(zs)
 
 
 def _residual_fn(problem: _Problem):
@@ -302,18 +324,9 @@ def _residual_fn(problem: _Problem):
     def residual_jvp(primals, tangents):
         (z,), (t,) = primals, tangents
         h = problem.fd_steps(z)
-        eye = jnp.eye(z.shape[0])
         # step towards the middle of each range, so the difference never leaves it
-        h = jnp.where(z > 0, -h, h)
-        points = jnp.concatenate([z[None], z + h[:, None] * eye])
-        feats = problem.features(points).mean(axis=2)  # (P+1, R, B)
-        d_mean = (feats[1:] - feats[0][None]) / h[:, None, None]  # (P, R, B)
-        p = z.shape[0]
-        j_data = -(d_mean / problem.sigma[None]).reshape(p, -1).T
-        j_prior = jax.jacfwd(problem.prior_rows)(z)
-        jac = jnp.concatenate([j_data, j_prior])
-        out = jnp.concatenate([problem.data_rows(feats[0]), problem.prior_rows(z)])
-        return out, jac @ t
+        r, jac = _fd_jacobian(problem, z, jnp.where(z > 0, -h, h), central=False)
+        return r, jac @ t
 
     return residual
 
@@ -324,15 +337,7 @@ def _central_jacobian(problem: _Problem, z, *, scale: float) -> tuple[np.ndarray
     Used for the covariance: a wider, symmetric difference averages over the small-scale
     ruggedness that a chaotic statistic has, where the fit's one-sided step need not.
     """
-    p = z.shape[0]
-    h = problem.fd_steps(z) * scale
-    eye = jnp.eye(p)
-    points = jnp.concatenate([z[None], z + h[:, None] * eye, z - h[:, None] * eye])
-    feats = problem.features(points).mean(axis=2)
-    d_mean = (feats[1 : p + 1] - feats[p + 1 :]) / (2 * h[:, None, None])
-    j_data = -(d_mean / problem.sigma[None]).reshape(p, -1).T
-    jac = jnp.concatenate([j_data, jax.jacfwd(problem.prior_rows)(z)])
-    r = jnp.concatenate([problem.data_rows(feats[0]), problem.prior_rows(z)])
+    r, jac = _fd_jacobian(problem, z, problem.fd_steps(z) * scale, central=True)
     return np.asarray(r), np.asarray(jac)
 
 
@@ -522,7 +527,7 @@ def identify(
     problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
 
     say(f"evaluating {options.n_starts} starting points (compiling the simulator first) …")
-    feats = jax.jit(lambda zs, q: q.features(zs))(jnp.asarray(starts), problem).mean(axis=2)
+    feats = _batched_features(problem, jnp.asarray(starts)).mean(axis=2)
     costs = [
         float(
             jnp.sum(problem.data_rows(feats[i]) ** 2)
@@ -557,7 +562,7 @@ def identify(
     # Costs from differently compiled programs are different chaotic realisations, so the
     # candidates (optima and the best start) are compared in one batched evaluation.
     candidates = np.stack([o[1] for o in optima] + [starts[order[0]]])
-    feats = jax.jit(lambda zs, q: q.features(zs))(jnp.asarray(candidates), problem).mean(axis=2)
+    feats = _batched_features(problem, jnp.asarray(candidates)).mean(axis=2)
     final = [
         float(
             jnp.sum(problem.data_rows(feats[i]) ** 2)

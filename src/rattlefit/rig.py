@@ -13,7 +13,7 @@ import numpy as np
 
 from .drive import Drive
 from .geometry import GearGeometry
-from .model import RattleModel, RattleParams
+from .model import RattleModel
 from .oil import dynamic_viscosity
 from .recording import Recording
 from .spectra import BandSpec, quantisation_floor, rattle_index, spectral_features
@@ -55,14 +55,6 @@ class RigSetup:
     @property
     def sample_rate(self) -> float:
         return self.recording.sample_rate_hz
-
-    def params(self, *, film_half_length: float, drag_torque: float, **kw) -> RattleParams:
-        """Parameters with this recording's backlash and catalogue viscosity as defaults."""
-        kw.setdefault("viscosity", self.viscosity)
-        kw.setdefault("backlash", self.geometry.backlash)
-        return RattleParams(
-            film_half_length, drag_torque, kw.pop("viscosity"), kw.pop("backlash"), **kw
-        )
 
     def no_rattle_drag_torque(self) -> float:
         """Drag torque above which the pair does not rattle, I2·(r1/r2)·max|θ̈1|, N m."""
