@@ -5,9 +5,14 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import jax
 import pytest
 
 import rattlefit as rf
+
+# pytest-xdist already runs one worker per core: keep each worker on one JAX device (starting
+# JAX here fixes that, so the CLI's use_cpu_cores() is a no-op under test).
+jax.devices()
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "recordings"
 

@@ -18,6 +18,7 @@ from .errors import ParameterError, RattlefitError, RecordingError, SolverError 
 from .geometry import GearGeometry, table2_pair  # noqa: E402
 from .model import Effect, RattleModel, RattleParams, Smoothing  # noqa: E402
 from .oil import dynamic_viscosity  # noqa: E402
+from .parallel import use_cpu_cores  # noqa: E402
 from .simulate import Solution, simulate, simulate_batch  # noqa: E402
 
 __version__ = "0.1.0"
@@ -38,4 +39,5 @@ __all__ = [
     "simulate",
     "simulate_batch",
     "table2_pair",
+    "use_cpu_cores",
 ]

@@ -1,0 +1,86 @@
+"""Spread batches of simulations over every local device (CPU cores or GPUs).
+
+An adaptive solve of this model is a long chain of tiny scalar steps, which one XLA CPU device
+runs on one core. JAX exposes a single CPU device unless told otherwise, so a batch of
+simulations (``simulate_batch``, and every evaluation inside ``identify``) would leave the other
+cores idle. :func:`use_cpu_cores` asks JAX for one CPU device per core — it must run before JAX
+executes anything, which is why the command-line interface calls it first thing — and
+:func:`map_rows` then splits a batch evenly over the devices with ``shard_map``; each device
+runs its share with ``jax.lax.map``. With one device :func:`map_rows` is exactly
+``jax.lax.map``, so results never depend on whether the cores were enabled (measured: the
+features agree to the last bit).
+
+On a GPU, JAX already lists every GPU, and :func:`map_rows` shards over them unchanged.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh, PartitionSpec
+
+
+def use_cpu_cores(n: int | None = None) -> int:
+    """Expose ``n`` CPU devices to JAX (default: one per available core).
+
+    Call before any JAX computation (JAX fixes its devices when it first runs something);
+    this call itself does not start JAX. Returns ``n``, or, if JAX had already started (a
+    warning says so), the CPU device count it has. Has no effect on the accelerators JAX uses
+    when it finds a GPU.
+    """
+    if n is None:
+        try:
+            n = len(os.sched_getaffinity(0))
+        except AttributeError:  # pragma: no cover - not on Linux
+            n = os.cpu_count() or 1
+    n = max(int(n), 1)
+    try:
+        jax.config.update("jax_num_cpu_devices", n)
+    except RuntimeError:
+        warnings.warn(
+            "rattlefit.use_cpu_cores: JAX has already started, so its CPU device count is "
+            "fixed; call use_cpu_cores() before any JAX computation to use every core",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+        return len(jax.devices("cpu"))
+    return n
+
+
+def map_rows(fn: Callable, rows):
+    """``jax.lax.map(fn, rows)``, with the rows split evenly over all local devices.
+
+    ``rows`` is a pytree whose leaves share a leading axis; the output has that axis too.
+    Rows are padded (repeating the last) to a multiple of the device count and the padding is
+    dropped from the result, so any batch size works.
+    """
+    devices = jax.local_devices()
+    n_dev = len(devices)
+    size = jax.tree_util.tree_leaves(rows)[0].shape[0]
+    if n_dev == 1 or size == 1:
+        return jax.lax.map(fn, rows)
+    n_dev = min(n_dev, size)
+    padded = -(-size // n_dev) * n_dev
+
+    def pad(x):
+        extra = jnp.repeat(x[-1:], padded - size, axis=0)
+        return jnp.concatenate([x, extra]) if padded > size else x
+
+    mesh = Mesh(np.asarray(devices[:n_dev]), ("rows",))
+    spec = PartitionSpec("rows")
+    sharded = jax.shard_map(
+        lambda r: jax.lax.map(fn, r),
+        mesh=mesh,
+        in_specs=(spec,),
+        out_specs=spec,
+        # the solver's internal loops mix per-device and replicated values; every row is
+        # independent, so no replication check is needed
+        check_vma=False,
+    )
+    out = sharded(jax.tree_util.tree_map(pad, rows))
+    return jax.tree_util.tree_map(lambda x: x[:size], out)
