@@ -10,11 +10,13 @@ from __future__ import annotations
 import functools
 import json
 import sys
+import warnings
 from pathlib import Path
 
 import click
 
 from .errors import RattlefitError
+from .parallel import use_cpu_cores
 
 EXIT_INPUT = 2
 
@@ -35,6 +37,11 @@ def _clean_errors(func):
 @click.version_option(package_name="rattlefit")
 def main() -> None:
     """Identify the physics of idle gear rattle from encoder recordings."""
+    # one JAX CPU device per core, so batched simulations use every core; a no-op (silently)
+    # when JAX has already started in this process, e.g. under a test runner
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        use_cpu_cores()
 
 
 @main.command()
@@ -206,12 +213,16 @@ def simulate(**o) -> None:
 )
 @click.option(
     "--realisations",
-    type=int,
-    default=4,
-    show_default=True,
-    help="Simulated realisations per evaluation.",
+    type=click.IntRange(min=2),
+    default=None,
+    help="Simulated realisations per evaluation [default: FitOptions.n_realisations].",
 )
-@click.option("--starts", type=int, default=8, show_default=True, help="Starting points evaluated.")
+@click.option(
+    "--starts",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Starting points evaluated [default: FitOptions.n_starts].",
+)
 @click.option(
     "--drive", type=click.Choice(["measured", "commanded"]), default="measured", show_default=True
 )
@@ -227,7 +238,8 @@ def identify(files, output, plot_dir, seed, realisations, starts, drive, quiet) 
     from .report import format_table, plot_fit
 
     recordings = [read_recording(f) for f in files]
-    options = FitOptions(seed=seed, n_realisations=realisations, n_starts=starts, drive=drive)
+    given = {"n_realisations": realisations, "n_starts": starts}
+    options = FitOptions(seed=seed, drive=drive, **{k: v for k, v in given.items() if v})
     say = None if quiet else (lambda msg: click.echo(f"  {msg}", err=True))
     result = run(recordings, options, progress=say)
     click.echo(format_table(result))
