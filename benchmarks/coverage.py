@@ -42,6 +42,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json")
     args = ap.parse_args()
+    print(f"{rf.use_cpu_cores()} JAX device(s); seed {args.seed}", flush=True)
     rng = np.random.default_rng(args.seed)
     picks = rng.choice(len(GRID), size=min(args.cases, len(GRID)), replace=False)
     rows = []
@@ -72,6 +73,7 @@ def main() -> None:
                 "upper": p.upper,
                 "estimate": p.estimate,
                 "identified": p.identified,
+                "bound": p.bound,
                 "covered": bool(p.lower <= value <= p.upper),
             }
         a_est = row["a"]

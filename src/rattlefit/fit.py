@@ -29,9 +29,16 @@ Rattle is chaotic, which shapes three choices:
 
 Uncertainty is the Laplace (Gauss–Newton) covariance ``(JᵀJ)⁻¹`` in ``z``, inflated by the
 reduced χ² of the data rows when that exceeds one, and mapped to 95 % intervals through the
-monotone transforms. A parameter whose interval runs into its prior range's end is reported as
-*not identified*, with the one-sided bound the data do support (e.g. ``a ≥ …`` under oil-jet
-lubrication, where the squeeze force saturates once a ≫ √(2 R h_min)).
+monotone transforms. Each column of that Jacobian is a difference of noisy ensemble means, and
+its expected noise, estimated from the paired realisations, is removed from ``JᵀJ`` so that
+noise does not pass for information. The Laplace interval is local and Gaussian, so the
+intervals of the free parameters (``a``, ``drag_torque``) come from a scan of their cost
+profiles over the whole range (:func:`_profile_scan`). A parameter whose interval runs into its
+range's end is reported
+as *not identified*, with the one-sided bound the data do support (e.g. ``a ≥ …`` under oil-jet
+lubrication, where the squeeze force saturates once a ≫ √(2 R h_min); ``a ≤ …`` when dry
+flanks explain the data as well); one whose interval is two-sided but wider than a factor
+:data:`IDENTIFIED_RATIO` is reported as an interval without an estimate.
 """
 
 from __future__ import annotations
@@ -49,12 +56,14 @@ import optimistix as optx
 
 from .errors import RattlefitError
 from .model import RattleModel, RattleParams
+from .parallel import map_rows
 from .recording import Recording
 from .rig import RigSetup, setup
 from .simulate import _solve, _static_options
 from .spectra import spectral_features
 
 Z95 = 1.959963984540054
+CHI2_1_95 = Z95**2  # 95 % quantile of χ² with one degree of freedom
 
 
 @dataclasses.dataclass(frozen=True)
@@ -139,8 +148,11 @@ class FitOptions:
 class ParameterEstimate:
     """A fitted parameter: estimate and 95 % interval (SI units).
 
-    When ``identified`` is False the data bound the parameter on one side only (``bound`` is
-    ``"lower"`` or ``"upper"``) or not at all (``bound`` is None), and ``estimate`` is None.
+    When ``identified`` is False, ``estimate`` is None and ``bound`` says what the data do
+    support: ``"lower"`` or ``"upper"`` (one side only), ``"interval"`` (both sides, but too
+    loosely to call it identified: see :data:`IDENTIFIED_RATIO`), ``"prior"`` (the interval
+    is mostly the prior's), or None (neither).
+    ``map_value`` is always the value at the optimum.
     """
 
     name: str
@@ -252,14 +264,24 @@ class _Problem(eqx.Module):
             stiffness_scale=v["stiffness_scale"],
         )
 
-    def features(self, zs):
-        """Features of every realisation for each row of ``zs`` (P,K): (K, R, M, B)."""
-        k, m = zs.shape[0], self.y0.shape[1]
+    def rows(self, zs, y0=None):
+        """One simulation per row for each point of ``zs`` (K, P), recording and realisation.
+
+        Returns ``(z, recording, release state, dither)`` with K·R·M rows, ordered point,
+        recording, realisation; ``y0`` (R, M, 2) replaces the problem's release states.
+        """
+        y0 = self.y0 if y0 is None else y0
+        k, m = zs.shape[0], y0.shape[1]
+        return (
+            jnp.repeat(zs, self.n_rec * m, axis=0),
+            jnp.tile(jnp.repeat(jnp.arange(self.n_rec), m), k),
+            jnp.tile(y0.reshape(-1, 2), (k, 1)),
+            jnp.tile(self.dither[:m], (k * self.n_rec, 1)),
+        )
+
+    def features_of_rows(self, rows):
+        """Features of every row (see :meth:`rows`): (N, B)."""
         opts = dict(self.static)
-        rows_z = jnp.repeat(zs, self.n_rec * m, axis=0)
-        rows_r = jnp.tile(jnp.repeat(jnp.arange(self.n_rec), m), k)
-        rows_y0 = jnp.tile(self.y0.reshape(-1, 2), (k, 1))
-        rows_d = jnp.tile(self.dither[: self.y0.shape[1]], (k * self.n_rec, 1))
 
         def one(args):
             z, r, y0, d = args
@@ -270,8 +292,12 @@ class _Problem(eqx.Module):
             # a failed solve gives a far-off, finite feature vector: the step is rejected
             return jnp.where(sol.result == 0, f, -30.0)
 
-        out = jax.lax.map(one, (rows_z, rows_r, rows_y0, rows_d))
-        return out.reshape(k, self.n_rec, m, -1)
+        return map_rows(one, rows)
+
+    def features(self, zs):
+        """Features of every realisation for each row of ``zs`` (K, P): (K, R, M, B)."""
+        out = self.features_of_rows(self.rows(zs))
+        return out.reshape(zs.shape[0], self.n_rec, self.y0.shape[1], -1)
 
     def prior_rows(self, z):
         rows = [
@@ -289,17 +315,19 @@ class _Problem(eqx.Module):
         return jnp.stack([s.fd_log_step / s.dlog_dz(z[i]) for i, s in enumerate(self.specs)])
 
 
-def _fd_jacobian(problem: _Problem, z, h, *, central: bool):
-    """Residual at ``z`` and its finite-difference Jacobian with steps ``h`` (in z).
+def _fd_points(z, h, *, central: bool):
+    """The points of a finite-difference Jacobian at ``z`` with steps ``h``: (1+P or 1+2P, P)."""
+    eye = jnp.eye(z.shape[0])
+    points = [z[None], z + h[:, None] * eye] + ([z - h[:, None] * eye] if central else [])
+    return jnp.concatenate(points)
 
-    All points are simulated in one batched call (common random numbers). Forward
-    differences when ``central`` is False, else central; the prior rows are differentiated
-    exactly.
+
+def _fd_jacobian(problem: _Problem, z, h, feats, *, central: bool):
+    """Residual at ``z`` and its finite-difference Jacobian from the ensemble-mean features
+    ``feats`` (K, R, B) at :func:`_fd_points`: forward differences when ``central`` is False,
+    else central. The prior rows are differentiated exactly.
     """
     p = z.shape[0]
-    eye = jnp.eye(p)
-    points = [z[None], z + h[:, None] * eye] + ([z - h[:, None] * eye] if central else [])
-    feats = problem.features(jnp.concatenate(points)).mean(axis=2)  # (K, R, B)
     lower = feats[p + 1 :] if central else feats[0][None]
     d_mean = (feats[1 : p + 1] - lower) / ((2 if central else 1) * h[:, None, None])
     j_data = -(d_mean / problem.sigma[None]).reshape(p, -1).T
@@ -309,36 +337,108 @@ def _fd_jacobian(problem: _Problem, z, h, *, central: bool):
 
 
 @eqx.filter_jit
-def _batched_features(problem: _Problem, zs):
-    """``problem.features`` compiled once per problem shape, reused across calls."""
-    return problem.features(zs)
+def _features_chunk(problem: _Problem, rows):
+    return problem.features_of_rows(rows)
 
 
-def _residual_fn(problem: _Problem):
-    @jax.custom_jvp
-    def residual(z):
-        mean = problem.features(z[None])[0].mean(axis=1)
-        return jnp.concatenate([problem.data_rows(mean), problem.prior_rows(z)])
-
-    @residual.defjvp
-    def residual_jvp(primals, tangents):
-        (z,), (t,) = primals, tangents
-        h = problem.fd_steps(z)
-        # step towards the middle of each range, so the difference never leaves it
-        r, jac = _fd_jacobian(problem, z, jnp.where(z > 0, -h, h), central=False)
-        return r, jac @ t
-
-    return residual
+def _chunk_size() -> int:
+    """Rows per compiled call: a fixed size, so one program serves every evaluation."""
+    return max(8, 4 * len(jax.local_devices()))
 
 
-def _central_jacobian(problem: _Problem, z, *, scale: float) -> tuple[np.ndarray, np.ndarray]:
-    """Residual and its central-difference Jacobian at ``scale`` × the fitting steps.
+def _evaluate(problem: _Problem, zs, y0=None) -> np.ndarray:
+    """Features of every realisation at each point of ``zs``: (K, R, M, B), numpy.
 
-    Used for the covariance: a wider, symmetric difference averages over the small-scale
-    ruggedness that a chaotic statistic has, where the fit's one-sided step need not.
+    Outside the Levenberg–Marquardt loop every evaluation goes through this one compiled
+    program of :func:`_chunk_size` rows (padded with repeats of the last row), so the
+    simulator is compiled once however many points are asked for.
     """
-    r, jac = _fd_jacobian(problem, z, problem.fd_steps(z) * scale, central=True)
-    return np.asarray(r), np.asarray(jac)
+    zs = jnp.atleast_2d(jnp.asarray(zs))
+    m = problem.y0.shape[1] if y0 is None else y0.shape[1]
+    rows = problem.rows(zs, None if y0 is None else jnp.asarray(y0))
+    n, c = rows[0].shape[0], _chunk_size()
+    pad = -n % c
+    rows = jax.tree_util.tree_map(
+        lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], pad, axis=0)]), rows
+    )
+    chunks = [
+        _features_chunk(problem, tuple(x[i : i + c] for x in rows)) for i in range(0, n + pad, c)
+    ]
+    out = np.concatenate([np.asarray(x) for x in chunks])[:n]
+    return out.reshape(zs.shape[0], problem.n_rec, m, -1)
+
+
+@jax.custom_jvp
+def _residual(z, problem: _Problem):
+    """Whitened residual (data rows, then prior rows) at ``z``.
+
+    A module-level function of ``(z, problem)`` so that optimistix compiles the
+    Levenberg–Marquardt loop once and reuses it for every start. Its derivative in ``z`` is
+    the finite-difference Jacobian of :func:`_fd_jacobian` (the problem is not differentiated).
+    """
+    mean = problem.features(z[None])[0].mean(axis=1)
+    return jnp.concatenate([problem.data_rows(mean), problem.prior_rows(z)])
+
+
+@_residual.defjvp
+def _residual_jvp(primals, tangents):
+    (z, problem), (t, _) = primals, tangents
+    h = problem.fd_steps(z)
+    h = jnp.where(z > 0, -h, h)  # towards the middle of each range: never leaves it
+    feats = problem.features(_fd_points(z, h, central=False)).mean(axis=2)
+    r, jac = _fd_jacobian(problem, z, h, feats, central=False)
+    return r, jac @ t
+
+
+_residual_jit = eqx.filter_jit(_residual)
+
+
+def _central_jacobian(problem: _Problem, z, *, scale: float, y0):
+    """Residual, its central-difference Jacobian at ``scale`` × the fitting steps, the
+    features of every realisation at ``z``, and the Monte Carlo noise of the Jacobian.
+
+    Used for the covariance, with the realisations released from ``y0`` (R, n, 2): more of
+    them than the fit uses, and a wider, symmetric difference that averages over the
+    small-scale ruggedness that a chaotic statistic has.
+
+    Each column is still a difference of two means of n chaotic realisations, so it carries
+    noise that ``JᵀJ`` would count as information. With common random numbers, realisation k
+    at ``z + h`` and at ``z − h`` share their release and dither, so the noise of column j is
+    estimated from the spread of the n paired differences: the returned ``noise`` (P, N, N)
+    holds the covariance of each column's data rows (N = R·B), in residual units.
+    """
+    z = jnp.asarray(z)
+    p = z.shape[0]
+    h = problem.fd_steps(z) * scale
+    per = _evaluate(problem, _fd_points(z, h, central=True), y0)  # (K, R, n, B)
+    r, jac = _fd_jacobian(problem, z, h, jnp.asarray(per.mean(axis=2)), central=True)
+    h_np, sigma = np.asarray(h), np.asarray(problem.sigma)
+    paired = (per[1 : p + 1] - per[p + 1 :]) / (2 * h_np[:, None, None, None])
+    paired = paired / sigma[None, :, None, :]  # (P, R, n, B)
+    n = paired.shape[2]
+    cols = np.moveaxis(paired, 2, 1).reshape(p, n, -1)  # (P, n, R·B)
+    noise = np.stack([np.cov(c, rowvar=False, ddof=1) / n for c in cols])
+    return np.asarray(r), np.asarray(jac), per[0], noise
+
+
+def _debiased_information(j_data: np.ndarray, noise: np.ndarray, j_prior: np.ndarray):
+    """``JᵀJ`` with the expected contribution of the Jacobian's noise removed.
+
+    A noisy column j adds ``noise[j]`` (the trace of its whitened noise covariance) to
+    ``(JᵀJ)_jj`` on average, while the noises of different columns (different points) are
+    independent. Left in, it overstates the curvature, and the intervals come out too narrow.
+    The correction applies to the data rows; eigenvalues it drives below
+    :data:`MIN_INFORMATION` are raised to it (no information from the data in that
+    direction); the prior rows, which are exact, are added afterwards.
+    """
+    info = j_data.T @ j_data - np.diag(noise)
+    vals, vecs = np.linalg.eigh(0.5 * (info + info.T))
+    info = (vecs * np.clip(vals, MIN_INFORMATION, None)) @ vecs.T
+    return info + j_prior.T @ j_prior
+
+
+#: Floor on the eigenvalues of the information matrix (a standard deviation of 1000 in z).
+MIN_INFORMATION = 1e-6
 
 
 def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec, ...]:
@@ -445,15 +545,19 @@ def _build(
     return problem, rigs
 
 
-def _ensemble(problem: _Problem, z, n: int, rng) -> np.ndarray:
-    """Features of ``n`` extra seeded realisations at ``z``: (R, n, B)."""
+def _release_states(problem: _Problem, z, n: int, rng) -> np.ndarray:
+    """``n`` seeded release states per recording, at rest across ±90 % of the gap: (R, n, 2)."""
     c = 0.5 * np.asarray(
         [float(s.value(z[i])) for i, s in enumerate(problem.specs) if s.name.startswith("backlash")]
     )
     y0 = np.zeros((problem.n_rec, n, 2))
     y0[:, :, 0] = rng.uniform(-0.9, 0.9, size=(problem.n_rec, n)) * c[:, None]
-    extra = eqx.tree_at(lambda p: p.y0, problem, jnp.asarray(y0))
-    return np.asarray(extra.features(z[None])[0])
+    return y0
+
+
+def _ensemble(problem: _Problem, z, n: int, rng) -> np.ndarray:
+    """Features of ``n`` extra seeded realisations at ``z``: (R, n, B)."""
+    return _evaluate(problem, np.asarray(z)[None], _release_states(problem, z, n, rng))[0]
 
 
 def _band_sigma(ens: np.ndarray, m: int, floor: float) -> jax.Array:
@@ -527,7 +631,7 @@ def identify(
     problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
 
     say(f"evaluating {options.n_starts} starting points (compiling the simulator first) …")
-    feats = _batched_features(problem, jnp.asarray(starts)).mean(axis=2)
+    feats = _evaluate(problem, starts).mean(axis=2)
     costs = [
         float(
             jnp.sum(problem.data_rows(feats[i]) ** 2)
@@ -538,20 +642,20 @@ def identify(
     order = np.argsort(costs)
     say("start costs: " + ", ".join(f"{costs[i]:.1f}" for i in order))
 
-    residual = _residual_fn(problem)
     solver = optx.LevenbergMarquardt(rtol=1e-2, atol=1e-2)
     optima = []
     for rank, i in enumerate(order[: options.n_refine]):
         say(f"Levenberg–Marquardt from start {rank + 1}/{options.n_refine} (cost {costs[i]:.1f}) …")
         sol = optx.least_squares(
-            lambda z, _: residual(z),
+            _residual,
             solver,
             jnp.asarray(starts[i]),
+            args=problem,
             max_steps=options.max_iterations,
             throw=False,
         )
         z = np.asarray(sol.value)
-        cost = float(jnp.sum(residual(jnp.asarray(z)) ** 2))
+        cost = float(jnp.sum(_residual_jit(jnp.asarray(z), problem) ** 2))
         steps = int(sol.stats["num_steps"])
         ok = sol.result == optx.RESULTS.successful
         say(
@@ -562,7 +666,7 @@ def identify(
     # Costs from differently compiled programs are different chaotic realisations, so the
     # candidates (optima and the best start) are compared in one batched evaluation.
     candidates = np.stack([o[1] for o in optima] + [starts[order[0]]])
-    feats = _batched_features(problem, jnp.asarray(candidates)).mean(axis=2)
+    feats = _evaluate(problem, candidates).mean(axis=2)
     final = [
         float(
             jnp.sum(problem.data_rows(feats[i]) ** 2)
@@ -585,30 +689,43 @@ def identify(
         say(f"{len(rivals)} other optimum(s) within Δcost < {tolerance:.1f}: intervals span them")
 
     say("re-estimating the spread at the optimum and the Laplace covariance …")
-    ens = _ensemble(problem, jnp.asarray(z), options.n_covariance_realisations, rng)
-    sigma = _band_sigma(ens, options.n_realisations, options.sigma_floor)
-    problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
-    # generalised least squares: whiten the data rows with the shrunk band correlation of
-    # each recording (chaotic excursions move many bands together)
+    # the Laplace stage uses more realisations than the fit, released from fresh states
+    y0_cov = _release_states(problem, z, options.n_covariance_realisations, rng)
     n_rec, n_band = problem.data.shape
     n_data = n_rec * n_band
-    whiten = np.zeros((n_data, n_data))
-    for k in range(n_rec):
-        chol = np.linalg.cholesky(shrunk_correlation(ens[k]))
-        sl = slice(k * n_band, (k + 1) * n_band)
-        whiten[sl, sl] = np.linalg.inv(chol)
     n_free = sum(1 for s in specs if s.log_sd is None)
     dof = max(n_data - n_free, 1)
+    whiten = None
 
     def laplace(zk):
-        r, jac = _central_jacobian(problem, jnp.asarray(zk), scale=1.5)
-        r_w = np.concatenate([whiten @ r[:n_data], r[n_data:]])
-        j_w = np.concatenate([whiten @ jac[:n_data], jac[n_data:]])
-        chi2_k = float(np.sum(r_w[:n_data] ** 2))
-        cov_k = np.linalg.pinv(j_w.T @ j_w) * max(1.0, chi2_k / dof)
-        return chi2_k, cov_k
+        nonlocal problem, whiten, sigma
+        r, jac, per, noise = _central_jacobian(problem, zk, scale=1.5, y0=y0_cov)
+        if whiten is None:
+            # at the optimum: the band spread and correlations come from these realisations,
+            # and the residual and Jacobian are re-expressed in their units
+            old = np.asarray(problem.sigma)
+            sigma = _band_sigma(per, options.n_realisations, options.sigma_floor)
+            problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
+            ratio = (old / np.asarray(sigma)).reshape(-1)
+            r = np.concatenate([r[:n_data] * ratio, r[n_data:]])
+            jac = np.concatenate([jac[:n_data] * ratio[:, None], jac[n_data:]])
+            noise = noise * np.outer(ratio, ratio)[None]
+            # generalised least squares: whiten the data rows with the shrunk band
+            # correlation of each recording (chaotic excursions move many bands together)
+            whiten = np.zeros((n_data, n_data))
+            for k in range(n_rec):
+                chol = np.linalg.cholesky(shrunk_correlation(per[k]))
+                sl = slice(k * n_band, (k + 1) * n_band)
+                whiten[sl, sl] = np.linalg.inv(chol)
+        r_w = whiten @ r[:n_data]
+        j_w = whiten @ jac[:n_data]
+        noise_w = np.asarray([np.trace(whiten @ c @ whiten.T) for c in noise])
+        chi2_k = float(np.sum(r_w**2))
+        info = _debiased_information(j_w, noise_w, jac[n_data:])
+        cov_k = np.linalg.inv(info) * max(1.0, chi2_k / dof)
+        return chi2_k, cov_k, per.mean(axis=1)
 
-    chi2, cov = laplace(z)
+    chi2, cov, mean = laplace(z)
     say(f"χ² = {chi2:.1f} on {dof} dof (band correlations included)")
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     corr = cov / np.outer(np.maximum(sd, 1e-300), np.maximum(sd, 1e-300))
@@ -618,7 +735,32 @@ def identify(
         sd_r = np.sqrt(np.clip(np.diag(laplace(zr)[1]), 0, None))
         z_lo, z_hi = np.minimum(z_lo, zr - Z95 * sd_r), np.maximum(z_hi, zr + Z95 * sd_r)
 
-    mean = np.asarray(problem.features(jnp.asarray(z)[None])[0].mean(axis=1))
+    # the Laplace interval is local and Gaussian: the free parameters' intervals come from a
+    # scan of their cost profiles over the whole range (a → 0 is dry flanks)
+    say("scanning the profiles of the free parameters …")
+
+    def cost_of(per, zk):
+        # Gaussian synthetic likelihood (Wood 2010): each point's own band spread, so that a
+        # value where rattle wanders between attractors is neither favoured by a spread
+        # estimated elsewhere nor excused by a wide one (the log-determinant term)
+        sig = np.asarray(_band_sigma(per, options.n_realisations, options.sigma_floor))
+        r = ((np.asarray(problem.data) - per.mean(axis=1)) / sig).reshape(-1)
+        prior = np.asarray(problem.prior_rows(jnp.asarray(zk)))
+        return float(np.sum((whiten @ r) ** 2) + 2 * np.sum(np.log(sig)) + np.sum(prior**2))
+
+    # the threshold: χ²₁ (95 %), inflated like the covariance, plus the Monte Carlo noise of
+    # a difference of two costs of n realisations at 95 % one-sided: each cost varies by
+    # ≈ 4χ²/(n+1) from the mean features and ≈ 2B/(n−1) from the log-spread term
+    n_cov = y0_cov.shape[1]
+    var_cost = 4.0 * max(chi2, dof) / (n_cov + 1) + 2.0 * n_data / (n_cov - 1)
+    threshold = CHI2_1_95 * max(1.0, chi2 / dof) + 1.645 * math.sqrt(2.0 * var_cost)
+    for i, (lo, hi) in _profile_scan(problem, z, cov, y0_cov, cost_of, threshold).items():
+        z_lo[i], z_hi[i] = lo, hi
+        if rivals:
+            # rival optima are equally good explanations: keep them inside
+            z_lo[i] = min(z_lo[i], *(zr[i] for zr in rivals))
+            z_hi[i] = max(z_hi[i], *(zr[i] for zr in rivals))
+
     estimates = {}
     for i, s in enumerate(specs):
         estimates[s.name] = _estimate(s, z[i], z_lo[i], z_hi[i])
@@ -668,21 +810,116 @@ def identify(
     )
 
 
+#: Range ends of the unconstrained coordinate (sigmoid(±8) is within 3.4e-4 of the end:
+#: a = 1.003 µm, for instance).
+Z_END = 8.0
+#: Where :func:`_profile_scan` evaluates each free parameter: fractions of its log range …
+SCAN_FRACTIONS = (0.0, 0.2, 0.4, 0.6, 0.8, 1.0)
+#: … and offsets from the optimum in Laplace standard deviations.
+SCAN_OFFSETS = (-2.0, -1.0, 1.0, 2.0)
+
+
+def _profile_scan(problem: _Problem, z, cov, y0, cost_of, threshold: float):
+    """95 % intervals (in z) of the free parameters from a scan of their cost profiles.
+
+    The Laplace interval is local and Gaussian, and rattle's cost is neither: a weak film is
+    nearly indistinguishable from dry flanks (a → 0), a long one from a saturated film, and
+    the drag torque trades against the film along a curved valley where a linear
+    extrapolation of the covariance runs off to the ends of the range. So each free parameter
+    is scanned over its whole range (:data:`SCAN_FRACTIONS`) and near the optimum
+    (:data:`SCAN_OFFSETS`). At each value the other parameters are set two ways — kept at the
+    optimum, and moved along the Laplace profile path ``z + Σ[:, i]/Σ_ii · (t − z_i)`` — and
+    the lower cost stands for the profile. Every point is simulated from the release states
+    ``y0`` in one batched call with the optimum (common random numbers), so the costs are
+    comparable; ``cost_of`` uses each point's own realisations for its band spread (a
+    synthetic likelihood), because the spread itself changes along the scan. The interval
+    spans every scanned value whose cost is within ``threshold`` of the optimum's, its ends
+    interpolated linearly towards the first value outside.
+
+    ``cost_of`` maps the features of every realisation (R, n, B) and z to the cost. Returns
+    ``{index: (lower, upper)}`` in z.
+    """
+    zs, owners = [np.asarray(z)], []
+    for i, spec in enumerate(problem.specs):
+        if spec.log_sd is not None:
+            continue
+        sd = math.sqrt(max(cov[i, i], 0.0))
+        beta = np.clip(cov[:, i] / cov[i, i], -10, 10) if cov[i, i] > 0 else np.zeros_like(z)
+        ts = {spec.z_of(spec.lower * (spec.upper / spec.lower) ** f) for f in SCAN_FRACTIONS}
+        ts |= {z[i] + o * sd for o in SCAN_OFFSETS if sd < Z_END}
+        for t in sorted(float(np.clip(t, -Z_END, Z_END)) for t in ts):
+            fixed = np.asarray(z, dtype=float).copy()
+            fixed[i] = t
+            moved = np.clip(z + beta * (t - z[i]), -Z_END, Z_END)
+            moved[i] = t
+            zs += [fixed, moved]
+            owners += [(i, t)] * 2
+    if not owners:
+        return {}
+    zs = np.stack(zs)
+    per = _evaluate(problem, zs, y0)  # (K, R, n, B)
+    cost = np.asarray([cost_of(per[k], zs[k]) for k in range(len(zs))])
+    out = {}
+    for i in sorted({o[0] for o in owners}):
+        profile: dict[float, float] = {float(z[i]): 0.0}
+        for (j, t), c in zip(owners, cost[1:], strict=True):
+            if j == i:
+                profile[t] = min(profile.get(t, np.inf), c - cost[0])
+        ts = np.asarray(sorted(profile))
+        dc = np.asarray([profile[t] for t in ts])
+        inside = np.flatnonzero(dc < threshold)
+        lo_k, hi_k = inside.min(), inside.max()
+        out[i] = (
+            _threshold_crossing(ts, dc, lo_k, lo_k - 1, threshold),
+            _threshold_crossing(ts, dc, hi_k, hi_k + 1, threshold),
+        )
+    return out
+
+
+def _threshold_crossing(ts, dc, k_in: int, k_out: int, threshold: float) -> float:
+    """Where Δcost, linear between scanned values ``ts[k_in]`` (inside) and ``ts[k_out]``
+    (outside), reaches ``threshold``; ``ts[k_in]`` when there is no value outside."""
+    if k_out < 0 or k_out >= len(ts):
+        return float(ts[k_in])
+    f = (threshold - dc[k_in]) / max(dc[k_out] - dc[k_in], 1e-12)
+    return float(ts[k_in] + np.clip(f, 0.0, 1.0) * (ts[k_out] - ts[k_in]))
+
+
+#: A parameter counts as identified when its 95 % interval is two-sided, inside the range,
+#: and narrower than this factor (upper/lower ≤ 2: the estimate is good to about ±40 %).
+IDENTIFIED_RATIO = 2.0
+
+
 def _estimate(spec: ParameterSpec, z: float, lo_z: float, hi_z: float) -> ParameterEstimate:
-    """95 % interval through the transform; one-sided when it runs into the range's end."""
+    """95 % interval through the transform; one-sided when it runs into the range's end.
+
+    ``identified`` needs a two-sided interval: for a free parameter no wider than
+    :data:`IDENTIFIED_RATIO` (else ``bound="interval"``), for a parameter with a prior at most
+    half the prior's own 95 % width, so that the data, not the prior, pin it down (else
+    ``bound="prior"``). Neither gets an estimate. For the free parameters (``a``,
+    ``drag_torque``) the lower end of the range stands for zero (dry flanks, no drag), and a
+    bound that runs into it reads 0.
+    """
     value = float(spec.value(z))
     lower, upper = float(spec.value(lo_z)), float(spec.value(hi_z))
     edge = 0.05  # within 5 % of the log range of an end counts as "runs into it"
     u_lo = (math.log(lower) - math.log(spec.lower)) / spec.log_range
     u_hi = (math.log(upper) - math.log(spec.lower)) / spec.log_range
     at_top, at_bottom = u_hi > 1 - edge, u_lo < edge
-    wide = math.log(upper / lower) > math.log(10.0)
-    if spec.log_sd is None and (at_top or at_bottom or wide):
-        if at_top and not at_bottom:
-            return ParameterEstimate(
-                spec.name, spec.unit, None, lower, spec.upper, False, "lower", value
-            )
-        if at_bottom and not at_top:
-            return ParameterEstimate(spec.name, spec.unit, None, 0.0, upper, False, "upper", value)
-        return ParameterEstimate(spec.name, spec.unit, None, 0.0, spec.upper, False, None, value)
-    return ParameterEstimate(spec.name, spec.unit, value, lower, upper, True, None, value)
+    floor = 0.0 if spec.log_sd is None else spec.lower
+
+    def result(estimate, lo, hi, identified, bound):
+        return ParameterEstimate(spec.name, spec.unit, estimate, lo, hi, identified, bound, value)
+
+    if at_top and at_bottom:
+        return result(None, floor, spec.upper, False, None)
+    if at_top:
+        return result(None, lower, spec.upper, False, "lower")
+    if at_bottom:
+        return result(None, floor, upper, False, "upper")
+    width = math.log(upper / lower)
+    if spec.log_sd is not None and width > Z95 * spec.log_sd:
+        return result(None, lower, upper, False, "prior")
+    if width <= math.log(IDENTIFIED_RATIO) or spec.log_sd is not None:
+        return result(value, lower, upper, True, None)
+    return result(None, lower, upper, False, "interval")

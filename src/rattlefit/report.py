@@ -34,6 +34,10 @@ def format_table(result: FitResult) -> str:
             est, ci, ident = f"≥ {p.lower * mult:.4g}", "(bound)", "no: lower bound only"
         elif p.bound == "upper":
             est, ci, ident = f"≤ {p.upper * mult:.4g}", "(bound)", "no: upper bound only"
+        elif p.bound in ("interval", "prior"):
+            est = "—"
+            ci = f"[{p.lower * mult:.4g}, {p.upper * mult:.4g}]"
+            ident = "no: interval too wide" if p.bound == "interval" else "no: prior-dominated"
         else:
             est, ci, ident = "—", f"[{p.lower * mult:.4g}, {p.upper * mult:.4g}]", "no"
         rows.append((name, est, ci, unit, ident))
