@@ -34,11 +34,11 @@ its expected noise, estimated from the paired realisations, is removed from ``J�
 noise does not pass for information. The Laplace interval is local and Gaussian, so the
 intervals of the free parameters (``a``, ``drag_torque``) come from a scan of their cost
 profiles over the whole range (:func:`_profile_scan`). A parameter whose interval runs into its
-range's end is reported
-as *not identified*, with the one-sided bound the data do support (e.g. ``a ≥ …`` under oil-jet
-lubrication, where the squeeze force saturates once a ≫ √(2 R h_min); ``a ≤ …`` when dry
-flanks explain the data as well); one whose interval is two-sided but wider than a factor
-:data:`IDENTIFIED_RATIO` is reported as an interval without an estimate.
+range's end is reported as *not identified*, with the one-sided bound the data do support
+(e.g. ``a ≥ …`` under oil-jet lubrication, where the squeeze force saturates once
+a ≫ √(2 R h_min); ``a ≤ …`` when dry flanks explain the data as well); one whose interval is
+two-sided but wider than a factor :data:`IDENTIFIED_RATIO` is reported as an interval without
+an estimate.
 """
 
 from __future__ import annotations
@@ -390,7 +390,19 @@ def _residual_jvp(primals, tangents):
     return r, jac @ t
 
 
-_residual_jit = eqx.filter_jit(_residual)
+def _costs(problem: _Problem, zs) -> np.ndarray:
+    """The fit's cost (squared data and prior rows) at each point of ``zs`` (K, P), all
+    simulated in one batched evaluation, so that the costs are comparable."""
+    feats = _evaluate(problem, zs).mean(axis=2)
+    return np.asarray(
+        [
+            float(
+                jnp.sum(problem.data_rows(feats[k]) ** 2)
+                + jnp.sum(problem.prior_rows(jnp.asarray(zs[k])) ** 2)
+            )
+            for k in range(len(zs))
+        ]
+    )
 
 
 def _central_jacobian(problem: _Problem, z, *, scale: float, y0):
@@ -631,14 +643,7 @@ def identify(
     problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
 
     say(f"evaluating {options.n_starts} starting points (compiling the simulator first) …")
-    feats = _evaluate(problem, starts).mean(axis=2)
-    costs = [
-        float(
-            jnp.sum(problem.data_rows(feats[i]) ** 2)
-            + jnp.sum(problem.prior_rows(jnp.asarray(starts[i])) ** 2)
-        )
-        for i in range(options.n_starts)
-    ]
+    costs = _costs(problem, starts)
     order = np.argsort(costs)
     say("start costs: " + ", ".join(f"{costs[i]:.1f}" for i in order))
 
@@ -655,30 +660,19 @@ def identify(
             throw=False,
         )
         z = np.asarray(sol.value)
-        cost = float(jnp.sum(_residual_jit(jnp.asarray(z), problem) ** 2))
         steps = int(sol.stats["num_steps"])
         ok = sol.result == optx.RESULTS.successful
-        say(
-            f"  → cost {cost:.2f} after {steps} steps "
-            f"({'converged' if ok else 'stopped at the step limit'})"
-        )
-        optima.append((cost, z, steps, bool(ok)))
+        say(f"  → {steps} steps ({'converged' if ok else 'stopped at the step limit'})")
+        optima.append((z, steps, bool(ok)))
     # Costs from differently compiled programs are different chaotic realisations, so the
     # candidates (optima and the best start) are compared in one batched evaluation.
-    candidates = np.stack([o[1] for o in optima] + [starts[order[0]]])
-    feats = _evaluate(problem, candidates).mean(axis=2)
-    final = [
-        float(
-            jnp.sum(problem.data_rows(feats[i]) ** 2)
-            + jnp.sum(problem.prior_rows(jnp.asarray(candidates[i])) ** 2)
-        )
-        for i in range(len(candidates))
-    ]
+    candidates = np.stack([o[0] for o in optima] + [starts[order[0]]])
+    final = _costs(problem, candidates)
     rank = np.argsort(final)
     say("candidate costs: " + ", ".join(f"{final[i]:.1f}" for i in rank))
     z = candidates[rank[0]]
-    n_iter = sum(o[2] for o in optima)
-    converged = all(o[3] for o in optima)
+    n_iter = sum(o[1] for o in optima)
+    converged = all(o[2] for o in optima)
     tolerance = math.sqrt(2.0 * int(np.prod(problem.data.shape)))
     rivals = [
         candidates[i]
