@@ -132,7 +132,7 @@ def info(file: Path, as_json: bool) -> None:
 @click.option("--film-half-length", type=float, required=True, help="a, m (0 for dry)")
 @click.option("--drag-torque", type=float, required=True, help="T_b, N m")
 @click.option("--viscosity", type=float, help="μ, Pa s (default: the oil at --temperature)")
-@click.option("--min-film", type=float, default=10e-6, show_default=True, help="h_min, m")
+@click.option("--min-film", type=float, help="h_min, m  [default: 2e-6, model.DEFAULT_MIN_FILM]")
 @click.option("--stiffness-scale", type=float, default=1.0, show_default=True)
 @click.option("--duration", type=float, default=3.0, show_default=True, help="s")
 @click.option("--seed", type=int, default=0, show_default=True)
@@ -166,14 +166,14 @@ def simulate(**o) -> None:
         oil.viscosity_100c_cst,
         oil.density_kg_m3,
     )
-    from .model import RattleParams
+    from .model import DEFAULT_MIN_FILM, RattleParams
 
     params = RattleParams(
         o["film_half_length"],
         o["drag_torque"],
         mu,
         geometry.backlash,
-        min_film=o["min_film"],
+        min_film=o["min_film"] or DEFAULT_MIN_FILM,
         stiffness_scale=o["stiffness_scale"],
     )
     click.echo(f"simulating {o['duration']:g} s (seed {o['seed']}) …", err=True)

@@ -109,7 +109,7 @@ def simulate_reference(
     drag_torque,
     viscosity,
     backlash,
-    min_film=10e-6,
+    min_film=2e-6,  # model.DEFAULT_MIN_FILM (this module stays free of JAX)
     stiffness_scale=1.0,
     duration=3.0,
     sample_rate=10_000.0,
