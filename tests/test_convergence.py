@@ -51,6 +51,9 @@ CASES = [
     ("I", 65.4, 10.472, 8.0, 1.0e-3, 0.03, 0.4281),
 ]
 M = 4  # realisations (released across the gap)
+#: Agreement (log10) asked of the band means where the motion locks into a periodic orbit (the
+#: mild case with h_min = 2 µm): 0.02 is 5 % in band power.
+LOCKED_TOL = 0.02
 
 
 @pytest.mark.parametrize("case", CASES, ids=lambda c: f"pair{c[0]}-{c[1]}mm-{c[3]:g}Hz")
@@ -85,15 +88,19 @@ def test_features_converge_to_sharp_model(case):
         sol = simulate_batch(model, p, drive, y0=jnp.asarray(y0s), rtol=1e-7, atol=1e-10)
         assert bool(np.all(np.asarray(sol.success)))
         f_sim = np.asarray(spectral_features(sol.relative_motion, bands, noise_floor=floor))
-        se = np.sqrt((f_sim.var(0, ddof=1) + f_ref.var(0, ddof=1)) / M)
+        # chaotic standard error, plus a tolerance for locked (periodic) orbits, where the
+        # spread vanishes and the smoothing's own small shift of the orbit would be all of z
+        se = np.sqrt((f_sim.var(0, ddof=1) + f_ref.var(0, ddof=1)) / M + LOCKED_TOL**2)
         z = (f_sim.mean(0) - f_ref.mean(0)) / se
         igr = np.asarray(rattle_index(sol.relative_motion, 1e4))
-        return np.sqrt(np.mean(z**2)), abs(igr.mean() / igr_ref.mean() - 1)
+        diff = np.sqrt(np.mean((f_sim.mean(0) - f_ref.mean(0)) ** 2))
+        return np.sqrt(np.mean(z**2)), diff, abs(igr.mean() / igr_ref.mean() - 1)
 
-    z_default, igr_err = compare(1.0)
-    z_coarse, _ = compare(100.0)
+    z_default, diff_default, igr_err = compare(1.0)
+    _, diff_coarse, _ = compare(100.0)
     # default smoothing: band means agree within their chaotic standard error
     assert z_default < 2.0, z_default
     assert igr_err < 0.1, igr_err
-    # a 100x coarser smoothing is detectably wrong: the comparison can fail
-    assert z_coarse > 3 * z_default, (z_coarse, z_default)
+    # a 100x coarser smoothing is detectably wrong: the comparison can fail (measured: band
+    # means off by 0.23-0.95 rms, against 0.014-0.030 for the default)
+    assert diff_coarse > 3 * diff_default, (diff_coarse, diff_default)
