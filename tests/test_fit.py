@@ -119,7 +119,7 @@ SHARED_CASES = [
     pytest.param(
         "pairII_oiljet_65.6_20pct_16Hz",
         marks=pytest.mark.xfail(
-            strict=False,
+            run=False,  # a 5-minute fit whose verdict is known: flip when the profile improves
             reason="issue 3 open: measured with seed 0, one target falls outside its interval; "
             "the profile scan moves the nuisance parameters only along the Laplace path, and "
             "this locked (periodic) oil-jet orbit moves with a few per cent of squeeze strength",

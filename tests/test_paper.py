@@ -50,6 +50,12 @@ def test_igr_grows_with_backlash(igr_table):
     for lub in LUBRICATION:
         values = [table[cd, lub] for cd in CENTRE_DISTANCES]
         assert values[-1] > 1.5 * values[0], (pair, lub, values)
+        if lub == "oil_jet":
+            # the strong oil-jet film locks the motion into periodic orbits at some backlashes
+            # and not at others, so the model's trend has windows (measured, pair I with
+            # h_min = 2 µm: 0.022, 0.11, 0.039, 0.060 rad·Hz over 65.0-66.0 mm, every release
+            # agreeing): only the overall growth is asked of it
+            continue
         # monotone up to the chaotic scatter of a 3-run mean (~10 %)
         assert all(b > 0.9 * a for a, b in itertools.pairwise(values)), (
             pair,
