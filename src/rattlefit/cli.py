@@ -173,7 +173,7 @@ def simulate(**o) -> None:
         o["drag_torque"],
         mu,
         geometry.backlash,
-        min_film=o["min_film"] or DEFAULT_MIN_FILM,
+        min_film=DEFAULT_MIN_FILM if o["min_film"] is None else o["min_film"],
         stiffness_scale=o["stiffness_scale"],
     )
     click.echo(f"simulating {o['duration']:g} s (seed {o['seed']}) …", err=True)
