@@ -44,9 +44,12 @@ def format_table(result: FitResult) -> str:
     widths = [max(len(r[i]) for r in rows) for i in range(5)]
     lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
+    per = ""
+    if len(result.chi2_recordings) > 1:
+        per = " (" + " + ".join(f"{c:.1f}" for c in result.chi2_recordings) + " by recording)"
     lines.append(
-        f"χ² = {result.chi2:.1f} on {result.dof} dof; {result.n_iterations} Levenberg–Marquardt "
-        f"steps; seed {result.seed}; {result.wall_time:.1f} s"
+        f"χ² = {result.chi2:.1f}{per} on {result.dof} dof; {result.n_iterations} "
+        f"Levenberg–Marquardt steps; seed {result.seed}; {result.wall_time:.1f} s"
     )
     return "\n".join(lines)
 
