@@ -129,9 +129,17 @@ def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
 
 
 # the independent simulator's files whose truth lists no extra effects (all five)
+# Two of the five run only with RATTLEFIT_SLOW=1, to keep CI under its time budget (each fit
+# takes 4–9 min on one core). Measured in session 4 (seed 0, commit 06dc6e1): all five hold
+# their truth. CI keeps the pair II oil-jet file (the one the profile re-optimisation fixed),
+# both pair I files and, through the synthetic tests above, the dry case.
+_SLOW_ONLY = pytest.mark.skipif(
+    not os.environ.get("RATTLEFIT_SLOW"),
+    reason="CI time budget: run with RATTLEFIT_SLOW=1 (passed in session 4)",
+)
 SHARED_CASES = [
-    "pairII_boundary_65.0_10pct_8Hz",
-    "pairII_boundary_65.6_20pct_16Hz",
+    pytest.param("pairII_boundary_65.0_10pct_8Hz", marks=_SLOW_ONLY),
+    pytest.param("pairII_boundary_65.6_20pct_16Hz", marks=_SLOW_ONLY),
     "pairII_oiljet_65.6_20pct_16Hz",
     "pairI_boundary_66.0_20pct_16Hz",
     "pairI_oiljet_65.4_20pct_8Hz",
