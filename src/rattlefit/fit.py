@@ -453,19 +453,22 @@ def _residual_jvp(primals, tangents):
     return r, jac @ t
 
 
-def _costs(problem: _Problem, zs) -> np.ndarray:
-    """The fit's cost (squared data and prior rows) at each point of ``zs`` (K, P), all
-    simulated in one batched evaluation, so that the costs are comparable."""
-    feats = _evaluate(problem, zs).mean(axis=2)
-    return np.asarray(
+def _residuals(problem: _Problem, zs) -> np.ndarray:
+    """The fit's residual (data rows, then prior rows) at each point of ``zs`` (K, P): (K, n),
+    all simulated in one batched evaluation, so that the values are comparable."""
+    zs = np.atleast_2d(np.asarray(zs, dtype=float))
+    mean = _evaluate(problem, zs).mean(axis=2)
+    return np.stack(
         [
-            float(
-                jnp.sum(problem.data_rows(feats[k]) ** 2)
-                + jnp.sum(problem.prior_rows(jnp.asarray(zs[k])) ** 2)
-            )
+            np.concatenate([problem.data_rows(mean[k]), problem.prior_rows(jnp.asarray(zs[k]))])
             for k in range(len(zs))
         ]
     )
+
+
+def _costs(problem: _Problem, zs) -> np.ndarray:
+    """The fit's cost (squared data and prior rows) at each point of ``zs`` (K, P)."""
+    return np.sum(_residuals(problem, zs) ** 2, axis=1)
 
 
 def _central_jacobian(problem: _Problem, z, *, scale: float, y0):
@@ -858,17 +861,6 @@ def identify(
     threshold = CHI2_1_95 + 1.645 * math.sqrt(2.0 * var_cost)
     profiles, cost_opt = _profile_scan(problem, z, cov, y0_cov, cost_of)
 
-    def residuals(points):
-        mean = _evaluate(problem, points).mean(axis=2)
-        return np.stack(
-            [
-                np.concatenate(
-                    [problem.data_rows(mean[k]), problem.prior_rows(jnp.asarray(points[k]))]
-                )
-                for k in range(len(points))
-            ]
-        )
-
     # the scanned values just outside each interval decide its ends: re-optimise the other
     # parameters there (a profile likelihood), and once more if that moved an end outwards
     polished: set[tuple[int, float]] = set()
@@ -884,7 +876,9 @@ def identify(
         say(f"re-optimising the other parameters at {len(todo)} profile value(s) …")
         starts = np.stack([profiles[i][t][1] for i, t in todo])
         steps = np.stack([np.asarray(problem.fd_steps(jnp.asarray(zk))) for zk in starts])
-        ends = _polish_profile(residuals, starts, [i for i, _ in todo], steps)
+        ends = _polish_profile(
+            lambda pts: _residuals(problem, pts), starts, [i for i, _ in todo], steps
+        )
         per = _evaluate(problem, ends, y0_cov)
         for (i, t), zk, per_k in zip(todo, ends, per, strict=True):
             polished.add((i, t))
