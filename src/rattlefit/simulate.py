@@ -279,7 +279,7 @@ def quantised_relative_motion(
     model: RattleModel,
     *,
     counts_per_rev: int = 40_000,
-    phase: Float[Array, " 2"] | None = None,
+    phase: Float[Array, "*batch 2"] | None = None,
 ) -> Array:
     """Δθ* as the rig measures it: from the two quantised encoders, eq. (6), rad.
 
@@ -287,9 +287,9 @@ def quantised_relative_motion(
     (..., 2), a fraction of a count, default 0) and combined as ``θ1 − θ2·r2/r1``, relative
     to the first sample. The error has the standard deviation of eq. (8) but is not white:
     while the count rate beats with the sample rate (33⅓ counts per sample at 500 rpm and
-    10 kHz) it concentrates in lines, which is why the fit quantises its simulations this
-    way instead of adding eq. (8)'s white floor. Traceable (jnp); ``solution`` may carry
-    batch axes.
+    10 kHz) it concentrates in lines; ``FitOptions(quantisation="encoders")`` reads the fit's
+    simulations this way instead of adding eq. (8)'s white floor. Traceable (jnp);
+    ``solution`` may carry batch axes.
     """
     primary, secondary = _encoder_readings(
         solution.q,
