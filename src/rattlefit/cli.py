@@ -226,9 +226,14 @@ def simulate(**o) -> None:
 @click.option(
     "--drive", type=click.Choice(["measured", "commanded"]), default="measured", show_default=True
 )
+@click.option(
+    "--quick",
+    is_flag=True,
+    help="A rough first look, several times faster, with wider intervals (FitOptions.quick).",
+)
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
 @_clean_errors
-def identify(files, output, plot_dir, seed, realisations, starts, drive, quiet) -> None:
+def identify(files, output, plot_dir, seed, realisations, starts, drive, quick, quiet) -> None:
     """Fit a, T_b and the viscosity to one recording, or jointly to several (one pair and
     lubrication, e.g. a backlash sweep)."""
     from ._util import atomic_write
@@ -239,7 +244,8 @@ def identify(files, output, plot_dir, seed, realisations, starts, drive, quiet) 
 
     recordings = [read_recording(f) for f in files]
     given = {"n_realisations": realisations, "n_starts": starts}
-    options = FitOptions(seed=seed, drive=drive, **{k: v for k, v in given.items() if v})
+    make = FitOptions.quick if quick else FitOptions
+    options = make(seed=seed, drive=drive, **{k: v for k, v in given.items() if v})
     say = None if quiet else (lambda msg: click.echo(f"  {msg}", err=True))
     result = run(recordings, options, progress=say)
     click.echo(format_table(result))

@@ -116,11 +116,20 @@ class FitOptions:
         realisation (half of it for the viscosity). Rattle has periodic windows and coexisting
         attractors, so its statistics jump between neighbouring parameter values; averaging
         over a small neighbourhood makes the expected features, and the fit, well posed.
+        The offsets are centred (zero mean over the realisations, so they do not shift the
+        mean features to first order) and their share of the realisations' spread is
+        regressed out of the band weights (:func:`_chaotic_part`). Measured on a synthetic
+        pair II backlash sweep (boundary, 10 % at 8 Hz, 65.0 and 65.4 mm, seed 0): with 0.2
+        the joint fit's T_b interval was 0.74 wide in log, wider than the single 65.4 mm
+        file's 0.57; with 0.1 it was 0.16 against 0.55, χ² 57 on 58, the truth inside. The
+        second-order bias of the dither grows as its square.
     n_noise_realisations : realisations used to estimate each band's run-to-run spread (the
         weights during the fit).
     n_covariance_realisations : realisations used for the full band covariance at the
         optimum (for the uncertainty).
-    n_starts : seeded starting points evaluated before Levenberg–Marquardt.
+    n_starts : seeded starting points over (``a``, ``drag_torque``) (a Latin hypercube in
+        log), evaluated in one batch before Levenberg–Marquardt. The band weights are
+        estimated at the prior centre, then again at the best start, and the starts re-ranked.
     n_refine : how many of the best starts are refined. Every refined optimum whose cost is
         within the statistic's own fluctuation scale √(2·dof) of the best is an equally good
         explanation of the data, and the reported intervals span all of them.
@@ -148,29 +157,24 @@ class FitOptions:
     seed : seeds the release positions and the starts (reported in the result).
     rtol : simulator tolerance.
     drive : ``"measured"`` (fit to the primary encoder) or ``"commanded"``.
-    quantisation : how the simulations are measured. ``"white"`` (default) adds eq. (8)'s
-        white quantisation floor to the simulated PSD; ``"encoders"`` reads each simulation
-        through the two encoders as the rig does (each realisation with its own seeded count
-        phases), so that the quantisation error has the recording's spectrum. That error is
-        not white: while the count rate beats with the sample rate it concentrates in lines.
-        Measured at the true parameters, ``"encoders"`` is the better model of a recording:
-        on a synthetic mild-rattle recording the band misfit of the mean of 16 undithered
-        realisations falls from rms 0.047 to 0.011 (χ² 73 → 4), and on the independent
-        simulator's pair I oil-jet file the top band moves from 0.32 below the data to 0.02.
-        It is not the default yet because the fit is calibrated on the white floor: with
-        ``"encoders"`` χ² drops (10–125 instead of 22–389 on two synthetic pair II files),
-        the reduced-χ² inflation vanishes, and Levenberg–Marquardt then stops in a
-        weak-film, low-drag valley (a ≈ 30 µm, T_b ≈ 0.012–0.021 N m against 85 µm and
-        0.025 N m) with intervals that exclude the truth, although the fit's own cost is
-        lower at the truth (with ``dither=0.05``: 103 at the truth, 498 where it stopped).
-        The optimiser, not the statistics, is what fails there.
+    quantisation : how the simulations are measured. ``"encoders"`` (default) reads each
+        simulation through the two encoders as the rig does (each realisation with its own
+        seeded count phases), so that the quantisation error has the recording's spectrum.
+        That error is not white: while the count rate beats with the sample rate it
+        concentrates in lines. ``"white"`` adds eq. (8)'s white floor to the simulated PSD
+        instead (cheaper, and the default before session 5). Measured at the true parameters,
+        ``"encoders"`` is the better model: on a synthetic mild-rattle recording the band
+        misfit of the mean of 16 undithered realisations falls from rms 0.047 to 0.011
+        (χ² 73 → 4), and on the independent simulator's pair I oil-jet file the top band moves
+        from 0.32 below the data to 0.02. With ``"white"``, the floor's misfit inflated χ²
+        (to 368 on 28 on a synthetic mild file) and with it every interval.
     priors : replacement :class:`ParameterSpec` by name.
     """
 
     n_realisations: int = 6
     n_noise_realisations: int = 8
     n_covariance_realisations: int = 24
-    n_starts: int = 8
+    n_starts: int = 24
     n_refine: int = 3
     max_iterations: int = 8
     sigma_floor: float = 0.03
@@ -180,10 +184,27 @@ class FitOptions:
     seed: int = 0
     rtol: float = 1e-5
     drive: str = "measured"
-    quantisation: str = "white"
+    quantisation: str = "encoders"
     burn_in: float = 0.5
-    dither: float = 0.2
+    dither: float = 0.1
     priors: dict = dataclasses.field(default_factory=dict)
+
+    @classmethod
+    def quick(cls, **overrides) -> "FitOptions":
+        """A rough first look, several times cheaper than the defaults: fewer realisations,
+        starts and iterations, a covariance from 8 realisations and the profile ends not
+        re-optimised. Its intervals are wider and less reliable; ``overrides`` replace any
+        field."""
+        preset = dict(
+            n_realisations=3,
+            n_noise_realisations=6,
+            n_covariance_realisations=8,
+            n_starts=8,
+            n_refine=1,
+            max_iterations=3,
+            profile_rounds=0,
+        )
+        return cls(**{**preset, **overrides})
 
     def __post_init__(self):
         if self.quantisation not in ("encoders", "white"):
@@ -332,9 +353,20 @@ class _Problem(eqx.Module):
             jnp.repeat(zs, self.n_rec * m, axis=0),
             jnp.tile(jnp.repeat(jnp.arange(self.n_rec), m), k),
             jnp.tile(y0.reshape(-1, 2), (k, 1)),
-            jnp.tile(self.dither[:m], (k * self.n_rec, 1)),
+            jnp.tile(self._dither(m), (k * self.n_rec, 1)),
             jnp.tile(self.encoder_phase[:m], (k * self.n_rec, 1)),
         )
+
+    def _dither(self, m):
+        """The first ``m`` realisations' log-offsets (m, P), centred: their mean is zero, so
+        that the dither smooths the mean features without shifting them."""
+        d = self.dither[:m]
+        return d - d.mean(axis=0)
+
+    def dither_offsets(self, m) -> np.ndarray:
+        """The dithered columns of :meth:`_dither` (m, q), for :func:`_chaotic_part`."""
+        d = np.asarray(self._dither(m))
+        return d[:, np.any(d != 0, axis=0)]
 
     def features_of_rows(self, rows):
         """Features of every row (see :meth:`rows`): (N, B)."""
@@ -453,11 +485,13 @@ def _residual_jvp(primals, tangents):
     return r, jac @ t
 
 
-def _residuals(problem: _Problem, zs) -> np.ndarray:
+def _residuals(problem: _Problem, zs, mean=None) -> np.ndarray:
     """The fit's residual (data rows, then prior rows) at each point of ``zs`` (K, P): (K, n),
-    all simulated in one batched evaluation, so that the values are comparable."""
+    all simulated in one batched evaluation, so that the values are comparable; ``mean``
+    (K, R, B) are the points' mean features if already simulated."""
     zs = np.atleast_2d(np.asarray(zs, dtype=float))
-    mean = _evaluate(problem, zs).mean(axis=2)
+    if mean is None:
+        mean = _evaluate(problem, zs).mean(axis=2)
     return np.stack(
         [
             np.concatenate([problem.data_rows(mean[k]), problem.prior_rows(jnp.asarray(zs[k]))])
@@ -466,9 +500,9 @@ def _residuals(problem: _Problem, zs) -> np.ndarray:
     )
 
 
-def _costs(problem: _Problem, zs) -> np.ndarray:
+def _costs(problem: _Problem, zs, mean=None) -> np.ndarray:
     """The fit's cost (squared data and prior rows) at each point of ``zs`` (K, P)."""
-    return np.sum(_residuals(problem, zs) ** 2, axis=1)
+    return np.sum(_residuals(problem, zs, mean) ** 2, axis=1)
 
 
 def _central_jacobian(problem: _Problem, z, *, scale: float, y0):
@@ -651,6 +685,7 @@ def _band_sigma(
     noise_floor: np.ndarray,
     floor_sd: float,
     discrepancy: float = 0.0,
+    offsets: np.ndarray | None = None,
 ) -> jax.Array:
     """Per-band σ of the residual (data − mean of m), floored: ``s_run² (1 + 1/m)`` plus
     ``(floor_sd · φ)²``, φ the share of the quantisation floor in the band's mean PSD, plus
@@ -660,11 +695,36 @@ def _band_sigma(
     (R,) the white quantisation PSD added to them. The second term is the uncertainty of that
     white floor: a real encoder's quantisation error is not white when the count rate beats
     with the sample rate, so in floor-dominated bands the measured level departs from eq. (8).
+    ``offsets`` (n, q) are the realisations' dither offsets: the run-to-run spread s_run is
+    then that of :func:`_chaotic_part`, without the dither's share.
     """
-    var = np.var(ens, axis=1, ddof=1) * (1.0 + 1.0 / m)
+    dev, dof = _chaotic_part(ens, offsets)
+    var = np.sum(dev**2, axis=1) / dof * (1.0 + 1.0 / m)
     share = np.asarray(noise_floor)[:, None] / 10.0 ** np.mean(ens, axis=1)
     var = var + (floor_sd * np.clip(share, 0.0, 1.0)) ** 2 + discrepancy**2
     return jnp.asarray(np.sqrt(np.maximum(var, floor**2)))
+
+
+def _chaotic_part(ens: np.ndarray, offsets: np.ndarray | None) -> tuple[np.ndarray, int]:
+    """The run-to-run (chaotic) deviations of ``ens`` (R, n, B) and their degrees of freedom.
+
+    Each realisation runs at the fit's point moved by its own fixed dither ``offsets`` (n, q)
+    (see ``FitOptions.dither``). Their centred mean is zero, so to first order the dither does
+    not move the mean features, but it does spread the realisations, the more where the
+    features depend strongly on the parameters. Left in, that spread inflates σ, makes bands
+    look correlated that only share a parameter, and (through the synthetic likelihood's
+    log-determinant) rewards regions where the features are insensitive. So the features are
+    regressed on the known offsets and the residuals kept: (R, n, B), with n − 1 − q degrees of
+    freedom. Without offsets (or with too few realisations for the regression to leave at
+    least three) the deviations from the mean are returned, with n − 1.
+    """
+    n = ens.shape[1]
+    x = np.ones((n, 1))
+    if offsets is not None and offsets.shape[1] and n - 1 - offsets.shape[1] >= 3:
+        x = np.column_stack([x, offsets])
+    hat = x @ np.linalg.pinv(x)  # projection onto the regressors
+    dev = ens - np.einsum("ij,rjb->rib", hat, ens)
+    return dev, n - x.shape[1]
 
 
 def shrunk_correlation(samples: np.ndarray) -> np.ndarray:
@@ -734,17 +794,27 @@ def identify(
             np.asarray(problem.floors),
             options.floor_uncertainty,
             options.model_discrepancy,
+            offsets=problem.dither_offsets(ens.shape[1]),
         )
 
     say("estimating the run-to-run spread of the features …")
     ens = _ensemble(problem, jnp.asarray(z_center), options.n_noise_realisations, rng)
     sigma = band_sigma(ens)
-    problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
 
     say(f"evaluating {options.n_starts} starting points (compiling the simulator first) …")
-    costs = _costs(problem, starts)
+    start_mean = _evaluate(problem, starts).mean(axis=2)  # (K, R, B)
+    costs = _costs(eqx.tree_at(lambda q: q.sigma, problem, sigma), starts, start_mean)
+    # the spread at the prior centre can be far from the spread near the data (violent
+    # rattle scatters more than mild): the weights are re-estimated at the best start and
+    # the starts re-ranked with them (their features are kept, so this costs no simulation)
+    say("re-estimating the spread at the best start …")
+    best = jnp.asarray(starts[np.argmin(costs)])
+    ens = _ensemble(problem, best, options.n_noise_realisations, rng)
+    sigma = band_sigma(ens)
+    problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
+    costs = _costs(problem, starts, start_mean)
     order = np.argsort(costs)
-    say("start costs: " + ", ".join(f"{costs[i]:.1f}" for i in order))
+    say("best start costs: " + ", ".join(f"{costs[i]:.1f}" for i in order[: options.n_refine + 3]))
 
     solver = optx.LevenbergMarquardt(rtol=1e-2, atol=1e-2)
     optima = []
@@ -810,7 +880,8 @@ def identify(
             # correlation of each recording (chaotic excursions move many bands together)
             whiten = np.zeros((n_data, n_data))
             for k in range(n_rec):
-                chol = np.linalg.cholesky(shrunk_correlation(per[k]))
+                chaos = _chaotic_part(per[k : k + 1], problem.dither_offsets(per.shape[1]))[0]
+                chol = np.linalg.cholesky(shrunk_correlation(chaos[0]))
                 sl = slice(k * n_band, (k + 1) * n_band)
                 whiten[sl, sl] = np.linalg.inv(chol)
             # each recording's rows are inflated by its own reduced χ² where that exceeds
@@ -852,12 +923,13 @@ def identify(
 
     # the threshold: χ²₁ (95 %), plus the Monte Carlo noise of a difference of two costs of
     # n realisations at 95 % one-sided: each cost varies by ≈ 4χ²/(n+1) from the mean
-    # features (in the inflated units: divided by the inflation squared) and ≈ 2B/(n−1) from
-    # the log-spread term
+    # features (in the inflated units: divided by the inflation squared) and ≈ 2B/ν from
+    # the log-spread term (ν the spread's degrees of freedom, see _chaotic_part)
     n_cov = y0_cov.shape[1]
     inflation = np.maximum(1.0, chi2_rec / dof_rec)
     var_cost = np.sum(4.0 * np.maximum(chi2_rec, dof_rec) / (n_cov + 1) / inflation**2)
-    var_cost += 2.0 * n_data / (n_cov - 1)
+    sigma_dof = _chaotic_part(np.zeros((1, n_cov, 1)), problem.dither_offsets(n_cov))[1]
+    var_cost += 2.0 * n_data / sigma_dof
     threshold = CHI2_1_95 + 1.645 * math.sqrt(2.0 * var_cost)
     profiles, cost_opt = _profile_scan(problem, z, cov, y0_cov, cost_of)
 
