@@ -718,13 +718,19 @@ def _chaotic_part(ens: np.ndarray, offsets: np.ndarray | None) -> tuple[np.ndarr
     freedom. Without offsets (or with too few realisations for the regression to leave at
     least three) the deviations from the mean are returned, with n − 1.
     """
-    n = ens.shape[1]
+    x = _dither_design(ens.shape[1], offsets)
+    hat = x @ np.linalg.pinv(x)  # projection onto the regressors
+    dev = ens - np.einsum("ij,rjb->rib", hat, ens)
+    return dev, x.shape[0] - x.shape[1]
+
+
+def _dither_design(n: int, offsets: np.ndarray | None) -> np.ndarray:
+    """Regressors of :func:`_chaotic_part` for n realisations: a constant, and the offsets
+    when at least three degrees of freedom remain."""
     x = np.ones((n, 1))
     if offsets is not None and offsets.shape[1] and n - 1 - offsets.shape[1] >= 3:
         x = np.column_stack([x, offsets])
-    hat = x @ np.linalg.pinv(x)  # projection onto the regressors
-    dev = ens - np.einsum("ij,rjb->rib", hat, ens)
-    return dev, n - x.shape[1]
+    return x
 
 
 def shrunk_correlation(samples: np.ndarray) -> np.ndarray:
@@ -928,7 +934,7 @@ def identify(
     n_cov = y0_cov.shape[1]
     inflation = np.maximum(1.0, chi2_rec / dof_rec)
     var_cost = np.sum(4.0 * np.maximum(chi2_rec, dof_rec) / (n_cov + 1) / inflation**2)
-    sigma_dof = _chaotic_part(np.zeros((1, n_cov, 1)), problem.dither_offsets(n_cov))[1]
+    sigma_dof = n_cov - _dither_design(n_cov, problem.dither_offsets(n_cov)).shape[1]
     var_cost += 2.0 * n_data / sigma_dof
     threshold = CHI2_1_95 + 1.645 * math.sqrt(2.0 * var_cost)
     profiles, cost_opt = _profile_scan(problem, z, cov, y0_cov, cost_of)
