@@ -885,9 +885,9 @@ def identify(
             # generalised least squares: whiten the data rows with the shrunk band
             # correlation of each recording (chaotic excursions move many bands together)
             whiten = np.zeros((n_data, n_data))
+            chaos = _chaotic_part(per, problem.dither_offsets(per.shape[1]))[0]
             for k in range(n_rec):
-                chaos = _chaotic_part(per[k : k + 1], problem.dither_offsets(per.shape[1]))[0]
-                chol = np.linalg.cholesky(shrunk_correlation(chaos[0]))
+                chol = np.linalg.cholesky(shrunk_correlation(chaos[k]))
                 sl = slice(k * n_band, (k + 1) * n_band)
                 whiten[sl, sl] = np.linalg.inv(chol)
             # each recording's rows are inflated by its own reduced χ² where that exceeds
