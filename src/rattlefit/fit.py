@@ -18,7 +18,9 @@ Rattle is chaotic, which shapes three choices:
    realisations (released from different, seeded positions in the gap), each band weighted by
    the run-to-run spread of a single recording's features, estimated from simulations
    (``σ² = s²_run (1 + 1/M)`` with a floor). The same seeded realisations are used at every
-   evaluation (common random numbers), so the objective is deterministic.
+   evaluation (common random numbers), so the objective is deterministic. Realisations that
+   settle into another regime (far from the ensemble median in every band) are set aside
+   from the mean and the spread (:mod:`rattlefit.ensemble`, ``FitOptions.regime_threshold``).
 2. **Jacobian.** Pathwise derivatives of a chaotic trajectory grow like e^{λt} (measured here:
    forward-mode sensitivities of 3 s of rattle reach 1e65), so the Jacobian that the
    Gauss–Newton model uses is a central difference of the ensemble-mean features at a finite
@@ -56,7 +58,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
+from scipy.stats import qmc
 
+from . import ensemble
+from .ensemble import chaotic_part, ensemble_mean, regime_weights, shrunk_correlation
 from .errors import RattlefitError
 from .model import DEFAULT_MIN_FILM, RattleModel, RattleParams
 from .parallel import map_rows
@@ -118,18 +123,26 @@ class FitOptions:
         over a small neighbourhood makes the expected features, and the fit, well posed.
         The offsets are centred (zero mean over the realisations, so they do not shift the
         mean features to first order) and their share of the realisations' spread is
-        regressed out of the band weights (:func:`_chaotic_part`). Measured on a synthetic
-        pair II backlash sweep (boundary, 10 % at 8 Hz, 65.0 and 65.4 mm, seed 0): with 0.2
-        the joint fit's T_b interval was 0.74 wide in log, wider than the single 65.4 mm
-        file's 0.57; with 0.1 it was 0.16 against 0.55, χ² 57 on 58, the truth inside. The
-        second-order bias of the dither grows as its square.
+        regressed out of the band weights (:func:`~rattlefit.ensemble.chaotic_part`).
+        Measured on a synthetic pair II backlash sweep (boundary, 10 % at 8 Hz, 65.0 and
+        65.4 mm, seed 0): with 0.2 the joint fit's T_b interval was 0.74 wide in log, wider
+        than the single 65.4 mm file's 0.57; with 0.1 it was 0.16 against 0.55, χ² 57 on 58,
+        the truth inside. The second-order bias of the dither grows as its square.
     n_noise_realisations : realisations used to estimate each band's run-to-run spread (the
         weights during the fit).
     n_covariance_realisations : realisations used for the full band covariance at the
         optimum (for the uncertainty).
-    n_starts : seeded starting points over (``a``, ``drag_torque``) (a Latin hypercube in
-        log), evaluated in one batch before Levenberg–Marquardt. The band weights are
-        estimated at the prior centre, then again at the best start, and the starts re-ranked.
+    n_starts : seeded starting points over (``a``, ``drag_torque``) (a scrambled Sobol'
+        sequence in log over :data:`START_RANGES`), screened in one batch before
+        Levenberg–Marquardt. The band weights are estimated at the prior centre, then again at
+        the best start, and the starts re-ranked. Where rattle locks into periodic orbits the
+        basin around the truth can be narrow: on a synthetic pair I boundary recording
+        (65.0 mm, 10 % at 8 Hz) the cost was 23 at the truth and above 180 at every point of
+        a grid spaced by factors of 1.4 in ``drag_torque`` and 2 in ``a`` around it, and 24
+        starts never found that basin.
+    start_realisations : realisations per start in the screening; the best
+        ``n_refine`` + :data:`SCREEN_EXTRA` starts are then re-evaluated with all
+        ``n_realisations``. Two are enough to tell a basin (cost differences of hundreds).
     n_refine : how many of the best starts are refined. Every refined optimum whose cost is
         within the statistic's own fluctuation scale √(2·dof) of the best is an equally good
         explanation of the data, and the reported intervals span all of them.
@@ -168,13 +181,21 @@ class FitOptions:
         (χ² 73 → 4), and on the independent simulator's pair I oil-jet file the top band moves
         from 0.32 below the data to 0.02. With ``"white"``, the floor's misfit inflated χ²
         (to 368 on 28 on a synthetic mild file) and with it every interval.
+    regime_threshold : realisations whose features lie further than this from the ensemble
+        median (mean squared robust z over the bands, see
+        :func:`~rattlefit.ensemble.regime_weights`) are taken to be in another regime and set
+        aside from the mean features and their spread; ``None`` keeps every realisation.
+        Measured on the pair I dry coverage cases, where about one realisation in eight
+        settles into a regime with d² of 15–45: with every realisation kept the fit put ``a``
+        at 10–40 µm (damping that suppresses that regime) and excluded the truth, a = 0.
     priors : replacement :class:`ParameterSpec` by name.
     """
 
     n_realisations: int = 6
     n_noise_realisations: int = 8
     n_covariance_realisations: int = 24
-    n_starts: int = 24
+    n_starts: int = 128
+    start_realisations: int = 2
     n_refine: int = 3
     max_iterations: int = 8
     sigma_floor: float = 0.03
@@ -187,6 +208,7 @@ class FitOptions:
     quantisation: str = "encoders"
     burn_in: float = 0.5
     dither: float = 0.1
+    regime_threshold: float | None = 9.0
     priors: dict = dataclasses.field(default_factory=dict)
 
     @classmethod
@@ -199,7 +221,7 @@ class FitOptions:
             n_realisations=3,
             n_noise_realisations=6,
             n_covariance_realisations=8,
-            n_starts=8,
+            n_starts=16,
             n_refine=1,
             max_iterations=3,
             profile_rounds=0,
@@ -322,6 +344,7 @@ class _Problem(eqx.Module):
     specs: tuple = eqx.field(static=True)
     bands: object = eqx.field(static=True)
     quantise: bool = eqx.field(static=True)
+    regime_threshold: float | None = eqx.field(static=True)
     static: tuple = eqx.field(static=True)  # simulator options as sorted items
 
     @property
@@ -364,7 +387,8 @@ class _Problem(eqx.Module):
         return d - d.mean(axis=0)
 
     def dither_offsets(self, m) -> np.ndarray:
-        """The dithered columns of :meth:`_dither` (m, q), for :func:`_chaotic_part`."""
+        """The dithered columns of :meth:`_dither` (m, q), for
+        :func:`~rattlefit.ensemble.chaotic_part`."""
         d = np.asarray(self._dither(m))
         return d[:, np.any(d != 0, axis=0)]
 
@@ -393,6 +417,10 @@ class _Problem(eqx.Module):
         """Features of every realisation for each row of ``zs`` (K, P): (K, R, M, B)."""
         out = self.features_of_rows(self.rows(zs))
         return out.reshape(zs.shape[0], self.n_rec, self.y0.shape[1], -1)
+
+    def mean_of(self, features):
+        """Mean features of the realisations (second-last axis) in the common regime."""
+        return ensemble_mean(features, self.regime_threshold)
 
     def prior_rows(self, z):
         rows = [
@@ -471,7 +499,7 @@ def _residual(z, problem: _Problem):
     Levenberg–Marquardt loop once and reuses it for every start. Its derivative in ``z`` is
     the finite-difference Jacobian of :func:`_fd_jacobian` (the problem is not differentiated).
     """
-    mean = problem.features(z[None])[0].mean(axis=1)
+    mean = problem.mean_of(problem.features(z[None])[0])
     return jnp.concatenate([problem.data_rows(mean), problem.prior_rows(z)])
 
 
@@ -480,7 +508,7 @@ def _residual_jvp(primals, tangents):
     (z, problem), (t, _) = primals, tangents
     h = problem.fd_steps(z)
     h = jnp.where(z > 0, -h, h)  # towards the middle of each range: never leaves it
-    feats = problem.features(_fd_points(z, h, central=False)).mean(axis=2)
+    feats = problem.mean_of(problem.features(_fd_points(z, h, central=False)))
     r, jac = _fd_jacobian(problem, z, h, feats, central=False)
     return r, jac @ t
 
@@ -491,7 +519,7 @@ def _residuals(problem: _Problem, zs, mean=None) -> np.ndarray:
     (K, R, B) are the points' mean features if already simulated."""
     zs = np.atleast_2d(np.asarray(zs, dtype=float))
     if mean is None:
-        mean = _evaluate(problem, zs).mean(axis=2)
+        mean = np.asarray(problem.mean_of(_evaluate(problem, zs)))
     return np.stack(
         [
             np.concatenate([problem.data_rows(mean[k]), problem.prior_rows(jnp.asarray(zs[k]))])
@@ -523,7 +551,7 @@ def _central_jacobian(problem: _Problem, z, *, scale: float, y0):
     p = z.shape[0]
     h = problem.fd_steps(z) * scale
     per = _evaluate(problem, _fd_points(z, h, central=True), y0)  # (K, R, n, B)
-    r, jac = _fd_jacobian(problem, z, h, jnp.asarray(per.mean(axis=2)), central=True)
+    r, jac = _fd_jacobian(problem, z, h, problem.mean_of(per), central=True)
     h_np, sigma = np.asarray(h), np.asarray(problem.sigma)
     paired = (per[1 : p + 1] - per[p + 1 :]) / (2 * h_np[:, None, None, None])
     paired = paired / sigma[None, :, None, :]  # (P, R, n, B)
@@ -658,6 +686,7 @@ def _build(
         specs=specs,
         bands=first.bands,
         quantise=options.quantisation == "encoders",
+        regime_threshold=options.regime_threshold,
         static=static,
     )
     return problem, rigs
@@ -676,83 +705,6 @@ def _release_states(problem: _Problem, z, n: int, rng) -> np.ndarray:
 def _ensemble(problem: _Problem, z, n: int, rng) -> np.ndarray:
     """Features of ``n`` extra seeded realisations at ``z``: (R, n, B)."""
     return _evaluate(problem, np.asarray(z)[None], _release_states(problem, z, n, rng))[0]
-
-
-def _band_sigma(
-    ens: np.ndarray,
-    m: int,
-    floor: float,
-    noise_floor: np.ndarray,
-    floor_sd: float,
-    discrepancy: float = 0.0,
-    offsets: np.ndarray | None = None,
-) -> jax.Array:
-    """Per-band σ of the residual (data − mean of m), floored: ``s_run² (1 + 1/m)`` plus
-    ``(floor_sd · φ)²``, φ the share of the quantisation floor in the band's mean PSD, plus
-    the model discrepancy ``discrepancy²``.
-
-    ``ens`` (R, n, B) are log10 features of n realisations per recording and ``noise_floor``
-    (R,) the white quantisation PSD added to them. The second term is the uncertainty of that
-    white floor: a real encoder's quantisation error is not white when the count rate beats
-    with the sample rate, so in floor-dominated bands the measured level departs from eq. (8).
-    ``offsets`` (n, q) are the realisations' dither offsets: the run-to-run spread s_run is
-    then that of :func:`_chaotic_part`, without the dither's share.
-    """
-    dev, dof = _chaotic_part(ens, offsets)
-    var = np.sum(dev**2, axis=1) / dof * (1.0 + 1.0 / m)
-    share = np.asarray(noise_floor)[:, None] / 10.0 ** np.mean(ens, axis=1)
-    var = var + (floor_sd * np.clip(share, 0.0, 1.0)) ** 2 + discrepancy**2
-    return jnp.asarray(np.sqrt(np.maximum(var, floor**2)))
-
-
-def _chaotic_part(ens: np.ndarray, offsets: np.ndarray | None) -> tuple[np.ndarray, int]:
-    """The run-to-run (chaotic) deviations of ``ens`` (R, n, B) and their degrees of freedom.
-
-    Each realisation runs at the fit's point moved by its own fixed dither ``offsets`` (n, q)
-    (see ``FitOptions.dither``). Their centred mean is zero, so to first order the dither does
-    not move the mean features, but it does spread the realisations, the more where the
-    features depend strongly on the parameters. Left in, that spread inflates σ, makes bands
-    look correlated that only share a parameter, and (through the synthetic likelihood's
-    log-determinant) rewards regions where the features are insensitive. So the features are
-    regressed on the known offsets and the residuals kept: (R, n, B), with n − 1 − q degrees of
-    freedom. Without offsets (or with too few realisations for the regression to leave at
-    least three) the deviations from the mean are returned, with n − 1.
-    """
-    x = _dither_design(ens.shape[1], offsets)
-    hat = x @ np.linalg.pinv(x)  # projection onto the regressors
-    dev = ens - np.einsum("ij,rjb->rib", hat, ens)
-    return dev, x.shape[0] - x.shape[1]
-
-
-def _dither_design(n: int, offsets: np.ndarray | None) -> np.ndarray:
-    """Regressors of :func:`_chaotic_part` for n realisations: a constant, and the offsets
-    when at least three degrees of freedom remain."""
-    x = np.ones((n, 1))
-    if offsets is not None and offsets.shape[1] and n - 1 - offsets.shape[1] >= 3:
-        x = np.column_stack([x, offsets])
-    return x
-
-
-def shrunk_correlation(samples: np.ndarray) -> np.ndarray:
-    """Correlation matrix of ``samples`` (n, p) shrunk towards the identity.
-
-    Schäfer & Strimmer (2005), target D: the optimal shrinkage intensity
-    λ = Σ_{i≠j} Var(r_ij) / Σ_{i≠j} r_ij², clipped to [0, 1]. With fewer samples than bands
-    the sample correlation is singular; the shrunk one is positive definite.
-    """
-    n = samples.shape[0]
-    x = samples - samples.mean(axis=0)
-    sd = x.std(axis=0, ddof=1)
-    x = x / np.where(sd > 0, sd, 1.0)
-    w = x[:, :, None] * x[:, None, :]  # (n, p, p)
-    r = w.mean(axis=0) * n / (n - 1)
-    var_r = n / (n - 1) ** 3 * np.sum((w - w.mean(axis=0)) ** 2, axis=0)
-    off = ~np.eye(r.shape[0], dtype=bool)
-    denom = np.sum(r[off] ** 2)
-    lam = 1.0 if denom == 0 else float(np.clip(np.sum(var_r[off]) / denom, 0.0, 1.0))
-    out = (1 - lam) * r
-    np.fill_diagonal(out, 1.0)
-    return out
 
 
 def identify(
@@ -782,18 +734,17 @@ def identify(
         f"per evaluation (seed {options.seed})"
     )
 
-    # starting points: prior centres, with (a, T_b) from a seeded Latin hypercube
+    # starting points: prior centres, with (a, T_b) from a seeded scrambled Sobol' sequence
     z_center = np.array([s.z_of(s.center) if s.center else 0.0 for s in specs])
     starts = np.tile(z_center, (options.n_starts, 1))
-    for col, (lo, hi) in ((0, (5e-6, 2e-3)), (1, (5e-3, 0.2))):
-        u = (
-            rng.permutation(options.n_starts) + rng.uniform(size=options.n_starts)
-        ) / options.n_starts
-        vals = np.exp(np.log(lo) + u * math.log(hi / lo))
+    sobol = qmc.Sobol(d=2, scramble=True, seed=rng)
+    u = sobol.random_base2(max(0, math.ceil(math.log2(options.n_starts))))[: options.n_starts]
+    for col, (lo, hi) in enumerate(START_RANGES):
+        vals = np.exp(np.log(lo) + u[:, col] * math.log(hi / lo))
         starts[:, col] = [specs[col].z_of(v) for v in vals]
 
     def band_sigma(ens):
-        return _band_sigma(
+        return ensemble.band_sigma(
             ens,
             options.n_realisations,
             options.sigma_floor,
@@ -801,14 +752,19 @@ def identify(
             options.floor_uncertainty,
             options.model_discrepancy,
             offsets=problem.dither_offsets(ens.shape[1]),
+            threshold=options.regime_threshold,
         )
 
     say("estimating the run-to-run spread of the features …")
     ens = _ensemble(problem, jnp.asarray(z_center), options.n_noise_realisations, rng)
     sigma = band_sigma(ens)
 
-    say(f"evaluating {options.n_starts} starting points (compiling the simulator first) …")
-    start_mean = _evaluate(problem, starts).mean(axis=2)  # (K, R, B)
+    k_screen = min(options.start_realisations, options.n_realisations)
+    say(
+        f"screening {options.n_starts} starting points with {k_screen} realisation(s) each "
+        "(compiling the simulator first) …"
+    )
+    start_mean = np.asarray(problem.mean_of(_evaluate(problem, starts, problem.y0[:, :k_screen])))
     costs = _costs(eqx.tree_at(lambda q: q.sigma, problem, sigma), starts, start_mean)
     # the spread at the prior centre can be far from the spread near the data (violent
     # rattle scatters more than mild): the weights are re-estimated at the best start and
@@ -819,7 +775,12 @@ def identify(
     sigma = band_sigma(ens)
     problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
     costs = _costs(problem, starts, start_mean)
-    order = np.argsort(costs)
+    order = np.argsort(costs)[: options.n_refine + SCREEN_EXTRA]
+    if k_screen < options.n_realisations:
+        say(f"re-evaluating the best {len(order)} with {options.n_realisations} realisations …")
+        costs = np.full(len(starts), np.inf)
+        costs[order] = _costs(problem, starts[order])
+        order = order[np.argsort(costs[order])]
     say("best start costs: " + ", ".join(f"{costs[i]:.1f}" for i in order[: options.n_refine + 3]))
 
     solver = optx.LevenbergMarquardt(rtol=1e-2, atol=1e-2)
@@ -868,15 +829,17 @@ def identify(
     whiten = None
     row_scale = None  # 1/√(inflation) of each recording's data rows, fixed at the optimum
     chi2_rec = None
+    sigma_dof = None  # degrees of freedom of the spread at the optimum
 
     def laplace(zk):
-        nonlocal problem, whiten, sigma, row_scale, chi2_rec
+        nonlocal problem, whiten, sigma, row_scale, chi2_rec, sigma_dof
         r, jac, per, noise = _central_jacobian(problem, zk, scale=1.5, y0=y0_cov)
         if whiten is None:
             # at the optimum: the band spread and correlations come from these realisations,
             # and the residual and Jacobian are re-expressed in their units
             old = np.asarray(problem.sigma)
             sigma = band_sigma(per)
+            kept = np.asarray(regime_weights(per, options.regime_threshold)) > 0
             problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
             ratio = (old / np.asarray(sigma)).reshape(-1)
             r = np.concatenate([r[:n_data] * ratio, r[n_data:]])
@@ -885,9 +848,10 @@ def identify(
             # generalised least squares: whiten the data rows with the shrunk band
             # correlation of each recording (chaotic excursions move many bands together)
             whiten = np.zeros((n_data, n_data))
-            chaos = _chaotic_part(per, problem.dither_offsets(per.shape[1]))[0]
+            chaos, nu = chaotic_part(per, problem.dither_offsets(per.shape[1]), kept)
+            sigma_dof = int(nu.min())
             for k in range(n_rec):
-                chol = np.linalg.cholesky(shrunk_correlation(chaos[k]))
+                chol = np.linalg.cholesky(shrunk_correlation(chaos[k, kept[k]]))
                 sl = slice(k * n_band, (k + 1) * n_band)
                 whiten[sl, sl] = np.linalg.inv(chol)
             # each recording's rows are inflated by its own reduced χ² where that exceeds
@@ -901,7 +865,7 @@ def identify(
         noise_w = np.asarray([np.trace(dw @ c @ dw.T) for c in noise])
         chi2_k = float(np.sum(r_w**2))
         info = _debiased_information(j_w, noise_w, jac[n_data:])
-        return chi2_k, np.linalg.inv(info), per.mean(axis=1)
+        return chi2_k, np.linalg.inv(info), np.asarray(problem.mean_of(per))
 
     chi2, cov, mean = laplace(z)
     say(f"χ² = {chi2:.1f} on {dof} dof (band correlations included)")
@@ -922,7 +886,7 @@ def identify(
         # value where rattle wanders between attractors is neither favoured by a spread
         # estimated elsewhere nor excused by a wide one (the log-determinant term)
         sig = np.asarray(band_sigma(per))
-        r = ((np.asarray(problem.data) - per.mean(axis=1)) / sig).reshape(-1)
+        r = ((np.asarray(problem.data) - np.asarray(problem.mean_of(per))) / sig).reshape(-1)
         prior = np.asarray(problem.prior_rows(jnp.asarray(zk)))
         quad = np.sum((row_scale * (whiten @ r)) ** 2)
         return float(quad + 2 * np.sum(np.log(sig)) + np.sum(prior**2))
@@ -930,11 +894,10 @@ def identify(
     # the threshold: χ²₁ (95 %), plus the Monte Carlo noise of a difference of two costs of
     # n realisations at 95 % one-sided: each cost varies by ≈ 4χ²/(n+1) from the mean
     # features (in the inflated units: divided by the inflation squared) and ≈ 2B/ν from
-    # the log-spread term (ν the spread's degrees of freedom, see _chaotic_part)
+    # the log-spread term (ν the spread's degrees of freedom, see chaotic_part)
     n_cov = y0_cov.shape[1]
     inflation = np.maximum(1.0, chi2_rec / dof_rec)
     var_cost = np.sum(4.0 * np.maximum(chi2_rec, dof_rec) / (n_cov + 1) / inflation**2)
-    sigma_dof = n_cov - _dither_design(n_cov, problem.dither_offsets(n_cov)).shape[1]
     var_cost += 2.0 * n_data / sigma_dof
     threshold = CHI2_1_95 + 1.645 * math.sqrt(2.0 * var_cost)
     profiles, cost_opt = _profile_scan(problem, z, cov, y0_cov, cost_of)
@@ -1019,6 +982,11 @@ def identify(
         chi2_recordings=[float(c) for c in chi2_rec],
     )
 
+
+#: Where the starting points of (a, T_b) are spread (log-uniformly), m and N m.
+START_RANGES = ((5e-6, 2e-3), (5e-3, 0.2))
+#: Starts re-evaluated with all realisations beyond the ``n_refine`` that are refined.
+SCREEN_EXTRA = 5
 
 #: Range ends of the unconstrained coordinate (sigmoid(±8) is within 3.4e-4 of the end:
 #: a = 1.003 µm, for instance).
