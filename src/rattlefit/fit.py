@@ -58,6 +58,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
+from scipy import stats
 from scipy.stats import qmc
 
 from . import ensemble
@@ -71,6 +72,8 @@ from .simulate import _solve, _static_options, quantised_relative_motion
 from .spectra import spectral_features
 
 Z95 = 1.959963984540054
+#: χ² p-value below which a fit is flagged as poor (:attr:`FitResult.poor_fit`).
+POOR_FIT_P = 1e-3
 CHI2_1_95 = Z95**2  # 95 % quantile of χ² with one degree of freedom
 
 
@@ -286,6 +289,20 @@ class FitResult:
     map_params: list[dict[str, float]]
     chi2_recordings: list[float] = dataclasses.field(default_factory=list)
 
+    @property
+    def p_value(self) -> float:
+        """Probability of a χ² at least this large if the model explained the data within
+        their run-to-run spread (χ² with ``dof`` degrees of freedom)."""
+        return float(stats.chi2.sf(self.chi2, max(self.dof, 1)))
+
+    @property
+    def poor_fit(self) -> bool:
+        """True when ``p_value`` < :data:`POOR_FIT_P`: the model's common regime does not
+        explain the recording. The intervals are then widened by √(χ²/dof), but they can still
+        miss (for instance when the recording is a regime that is rare at its true
+        parameters)."""
+        return self.p_value < POOR_FIT_P
+
     def rattle_params(self, k: int = 0) -> RattleParams:
         """The MAP :class:`RattleParams` of recording ``k``."""
         v = self.map_params[k]
@@ -306,6 +323,8 @@ class FitResult:
                 "chi2": self.chi2,
                 "dof": self.dof,
                 "reduced_chi2": self.chi2 / max(self.dof, 1),
+                "p_value": self.p_value,
+                "poor_fit": self.poor_fit,
                 "chi2_per_recording": self.chi2_recordings,
                 "iterations": self.n_iterations,
                 "success": self.success,

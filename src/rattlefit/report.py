@@ -51,6 +51,14 @@ def format_table(result: FitResult) -> str:
         f"χ² = {result.chi2:.1f}{per} on {result.dof} dof; {result.n_iterations} "
         f"Levenberg–Marquardt steps; seed {result.seed}; {result.wall_time:.1f} s"
     )
+    if result.poor_fit:
+        lines.append(
+            f"warning: χ² is far above its {result.dof} degrees of freedom "
+            f"(p = {result.p_value:.1e}): the model does not explain this recording within "
+            f"its run-to-run spread. The intervals are widened by √(χ²/dof) = "
+            f"{(result.chi2 / result.dof) ** 0.5:.1f} but may still miss; look at the "
+            "spectrum plot (--plot)."
+        )
     return "\n".join(lines)
 
 
