@@ -73,6 +73,7 @@ def main() -> None:
             "wall_s": time.perf_counter() - t0,
             "chi2": res.chi2,
             "dof": res.dof,
+            "poor_fit": res.poor_fit,
         }
         for name, value in truth.items():
             p = res.parameters[name]
@@ -94,7 +95,8 @@ def main() -> None:
         ident = "a identified" if a_est["identified"] else "a not identified"
         print(
             f"[{n + 1}/{len(picks)}] {row['case']} (seed {seed}): {cov}; {ident}; "
-            f"χ²={res.chi2:.0f}/{res.dof}; {row['wall_s']:.0f} s",
+            f"χ²={res.chi2:.0f}/{res.dof}{' (flagged poor fit)' if res.poor_fit else ''}; "
+            f"{row['wall_s']:.0f} s",
             flush=True,
         )
     total = sum(3 for _ in rows)
@@ -102,6 +104,13 @@ def main() -> None:
     print(f"coverage: {covered}/{total} = {covered / total:.0%} (aim ≥ 90 %)")
     within = [r["a_within_20pct"] for r in rows if r["a_within_20pct"] is not None]
     print(f"a identified in {len(within)}/{len(rows)} cases; within 20 % in {sum(within)}")
+    flagged = [r for r in rows if r["poor_fit"]]
+    unflagged = [r for r in rows if not r["poor_fit"]]
+    hit = sum(r[k]["covered"] for r in unflagged for k in ("a", "drag_torque", "viscosity"))
+    print(
+        f"{len(flagged)} case(s) flagged as a poor fit; coverage of the others: "
+        f"{hit}/{3 * len(unflagged)}"
+    )
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(rows, fh, indent=2)
