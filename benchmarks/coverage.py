@@ -8,8 +8,8 @@ fit called `a` identified. Issue 3's check: truth inside the interval in ≥ 90 
 
     python benchmarks/coverage.py [--cases 10] [--seed 0] [--json out.json] [--only K ...]
 
-Each case costs one identification (~100 s on 2 cores), so the default sample of 10 takes
-~20 minutes. Seeds are printed; every case is reproducible.
+Each case costs one identification (100–450 s on 2 cores), so the default sample of 10 takes
+~35 minutes. Seeds are printed; every case is reproducible.
 """
 
 from __future__ import annotations

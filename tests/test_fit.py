@@ -140,15 +140,22 @@ SHARED_CASES = [
     pytest.param("pairII_boundary_65.6_20pct_16Hz", marks=_SLOW_ONLY),
     pytest.param(
         "pairII_oiljet_65.6_20pct_16Hz",
-        marks=pytest.mark.xfail(
-            strict=False,
-            reason="issue 3 open, measured in session 5 with the encoders and the dither taken "
-            "out of the weights: seed 0 on one device gives T_b [0.0279, 0.0515] N m, missing "
-            "the true 0.025 at χ² 48 on 28; seed 1 on two devices holds it ([0.0243, 0.0342]), "
-            "as does model_discrepancy=0.05 ([0.0155, 0.0857]), which however widens the mild "
-            "synthetic file's a interval to a factor 26. The oil-jet misfit is the two "
-            "simulators' film strength (benchmarks/README)",
-        ),
+        marks=[
+            pytest.mark.skipif(
+                not os.environ.get("RATTLEFIT_SLOW"),
+                reason="CI time budget: a known miss (xfail) that took 514 s of CI in session 6; "
+                "run with RATTLEFIT_SLOW=1",
+            ),
+            pytest.mark.xfail(
+                strict=False,
+                reason="issue 3 open, measured in session 5 with the encoders and the dither taken "
+                "out of the weights: seed 0 on one device gives T_b [0.0279, 0.0515] N m, missing "
+                "the true 0.025 at χ² 48 on 28; seed 1 on two devices holds it ([0.0243, 0.0342]), "
+                "as does model_discrepancy=0.05 ([0.0155, 0.0857]), which however widens the mild "
+                "synthetic file's a interval to a factor 26. The oil-jet misfit is the two "
+                "simulators' film strength (benchmarks/README)",
+            ),
+        ],
     ),
     "pairI_boundary_66.0_20pct_16Hz",
     "pairI_oiljet_65.4_20pct_8Hz",
