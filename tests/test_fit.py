@@ -133,7 +133,7 @@ def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
 # through the synthetic tests above, the mild and dry cases.
 _SLOW_ONLY = pytest.mark.skipif(
     not os.environ.get("RATTLEFIT_SLOW"),
-    reason="CI time budget: run with RATTLEFIT_SLOW=1 (passed in session 4)",
+    reason="CI time budget: run with RATTLEFIT_SLOW=1 (passed in session 6, 545–638 s each)",
 )
 SHARED_CASES = [
     pytest.param("pairII_boundary_65.0_10pct_8Hz", marks=_SLOW_ONLY),
@@ -148,8 +148,10 @@ SHARED_CASES = [
             ),
             pytest.mark.xfail(
                 strict=False,
-                reason="issue 3 open, measured in session 5 with the encoders and the dither taken "
-                "out of the weights: seed 0 on one device gives T_b [0.0279, 0.0515] N m, missing "
+                reason="issue 3 open. Session 6 (regimes set aside, 128 screened starts): seed 0 "
+                "on one device gives T_b [0.0328, 0.0594] N m at χ² 79 on 28 (a flagged poor fit). "
+                "Session 5, with the encoders and the dither taken "
+                "out of the weights: seed 0 on one device gave T_b [0.0279, 0.0515] N m, missing "
                 "the true 0.025 at χ² 48 on 28; seed 1 on two devices holds it ([0.0243, 0.0342]), "
                 "as does model_discrepancy=0.05 ([0.0155, 0.0857]), which however widens the mild "
                 "synthetic file's a interval to a factor 26. The oil-jet misfit is the two "
