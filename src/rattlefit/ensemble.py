@@ -55,7 +55,10 @@ def regime_weights(features, threshold: float | None, *, scale_floor: float = 0.
 def ensemble_mean(features, threshold: float | None):
     """Mean features of the common regime (see :func:`regime_weights`): (..., B)."""
     f = jnp.asarray(features)
-    w = regime_weights(f, threshold)
+    return _weighted_mean(f, regime_weights(f, threshold))
+
+
+def _weighted_mean(f, w):
     return jnp.sum(w[..., None] * f, axis=-2) / jnp.sum(w, axis=-1)[..., None]
 
 
@@ -127,7 +130,7 @@ def band_sigma(
     weights = np.asarray(regime_weights(ens, threshold))
     dev, dof = chaotic_part(ens, offsets, weights)
     var = np.sum(dev**2, axis=1) / dof[:, None] * (1.0 + 1.0 / m)
-    mean = np.asarray(ensemble_mean(ens, threshold))
+    mean = np.asarray(_weighted_mean(jnp.asarray(ens), jnp.asarray(weights)))
     share = np.asarray(noise_floor)[:, None] / 10.0**mean
     var = var + (floor_sd * np.clip(share, 0.0, 1.0)) ** 2 + discrepancy**2
     return jnp.asarray(np.sqrt(np.maximum(var, floor**2)))
