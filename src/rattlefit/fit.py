@@ -771,7 +771,7 @@ def identify(
             options.floor_uncertainty,
             options.model_discrepancy,
             offsets=problem.dither_offsets(ens.shape[1]),
-            threshold=options.regime_threshold,
+            threshold=problem.regime_threshold,
         )
 
     say("estimating the run-to-run spread of the features …")
@@ -858,7 +858,7 @@ def identify(
             # and the residual and Jacobian are re-expressed in their units
             old = np.asarray(problem.sigma)
             sigma = band_sigma(per)
-            kept = np.asarray(regime_weights(per, options.regime_threshold)) > 0
+            kept = np.asarray(regime_weights(per, problem.regime_threshold)) > 0
             problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
             ratio = (old / np.asarray(sigma)).reshape(-1)
             r = np.concatenate([r[:n_data] * ratio, r[n_data:]])
