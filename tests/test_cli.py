@@ -159,3 +159,27 @@ def test_identify_bad_file_is_one_clean_error(tmp_path):
     assert result.exit_code == 2
     assert str(bad) in result.output
     assert not (tmp_path / "r.json").exists()
+
+
+def test_sample_refuses_a_foreign_backend_and_keeps_it(tmp_path):
+    backend = tmp_path / "notes.h5"
+    with h5py.File(backend, "w") as f:
+        f["x"] = np.arange(4)
+    out = tmp_path / "post.json"
+    result = CliRunner().invoke(
+        main,
+        [
+            "sample",
+            str(DATA / "pairII_boundary_65.6_20pct_16Hz.h5"),
+            "--backend",
+            str(backend),
+            "-o",
+            str(out),
+        ],
+    )
+    assert result.exit_code == 2
+    assert "notes.h5: /rattlefit: missing" in result.output
+    assert "Traceback" not in result.output
+    assert not out.exists()
+    with h5py.File(backend, "r") as f:
+        np.testing.assert_array_equal(f["x"][:], np.arange(4))

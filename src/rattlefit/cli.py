@@ -258,5 +258,63 @@ def identify(files, output, plot_dir, seed, realisations, starts, drive, quick, 
             click.echo(f"wrote {path}", err=True)
 
 
+@main.command()
+@click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option(
+    "--backend",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="HDF5 file the chain is saved to as it runs; if it holds a chain of these files, "
+    "that chain is continued (no refit).",
+)
+@click.option("--steps", type=click.IntRange(min=2), default=300, show_default=True)
+@click.option("--walkers", type=click.IntRange(min=2), default=16, show_default=True)
+@click.option(
+    "--burn-in", type=click.IntRange(min=0), default=None, help="[default: a third of --steps]"
+)
+@click.option("--seed", type=int, default=0, show_default=True, help="Seeds the fit and chain.")
+@click.option("--quick-fit", is_flag=True, help="Start from a FitOptions.quick() fit.")
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the credible intervals and diagnostics as JSON here.",
+)
+@click.option(
+    "--plot",
+    "plot_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Write the trace and pairwise-marginal plots (PNG) into this directory.",
+)
+@click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
+@_clean_errors
+def sample(files, backend, steps, walkers, burn_in, seed, quick_fit, output, plot_dir, quiet):
+    """Sample the Bayesian posterior of a, T_b, the viscosity and the nuisances (emcee),
+    starting from an identification of the same files."""
+    from ._util import atomic_write
+    from .fit import FitOptions
+    from .recording import read_recording
+    from .report import format_posterior, plot_posterior
+    from .sample import SampleOptions
+    from .sample import sample as run
+
+    if burn_in is not None and burn_in >= steps:
+        raise click.BadParameter(f"must be below --steps ({steps})", param_hint="--burn-in")
+    recordings = [read_recording(f) for f in files]
+    fit_options = (FitOptions.quick if quick_fit else FitOptions)(seed=seed)
+    options = SampleOptions(
+        n_walkers=walkers, n_steps=steps, burn_in=burn_in, seed=seed, fit=fit_options
+    )
+    say = None if quiet else (lambda msg: click.echo(f"  {msg}", err=True))
+    post = run(recordings, None, options, backend=backend, progress=say)
+    click.echo(format_posterior(post))
+    if output is not None:
+        text = json.dumps(post.to_json(), indent=2)
+        atomic_write(output, lambda tmp: tmp.write_text(text))
+        click.echo(f"wrote {output}", err=True)
+    if plot_dir is not None:
+        for path in plot_posterior(post, plot_dir):
+            click.echo(f"wrote {path}", err=True)
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()

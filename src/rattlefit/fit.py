@@ -265,6 +265,51 @@ class ParameterEstimate:
 
 
 @dataclasses.dataclass(frozen=True)
+class NoiseModel:
+    """How the data rows are weighted, fixed at the optimum: the Laplace covariance, the
+    profile scan and the posterior (:mod:`rattlefit.sample`) all use it.
+
+    sigma : (R, B) each band's standard deviation (log10): the run-to-run spread of one
+        recording's features plus the Monte Carlo error of an M-realisation mean, floored.
+    whiten : (R·B, R·B) block-diagonal inverse Cholesky factor of each recording's shrunk band
+        correlation (generalised least squares: chaotic excursions move many bands together).
+    row_scale : (R·B,) 1/√(inflation) of each recording's rows, the inflation being that
+        recording's reduced χ² where it exceeds one (a Birge ratio per recording).
+    chi2_recordings : (R,) each recording's χ² at the optimum, before inflation.
+    sigma_dof : degrees of freedom of the spread estimate
+        (:func:`~rattlefit.ensemble.chaotic_part`).
+    """
+
+    sigma: np.ndarray
+    whiten: np.ndarray
+    row_scale: np.ndarray
+    chi2_recordings: np.ndarray
+    sigma_dof: int
+
+    def quadratic(self, standardised) -> np.ndarray:
+        """Σ (row_scale · whiten · r)² of data rows ``r`` already divided by a band spread;
+        ``standardised`` (..., R·B) gives one value per leading index."""
+        r = np.asarray(standardised)
+        return np.sum((self.row_scale * (r @ self.whiten.T)) ** 2, axis=-1)
+
+
+def _noise_model(problem: _Problem, per: np.ndarray, r_data: np.ndarray, dof_rec: float):
+    """:class:`NoiseModel` from the realisations ``per`` (R, n, B) at the optimum, whose
+    standardised data rows (in units of ``problem.sigma``) are ``r_data`` (R·B,)."""
+    n_rec, n_band = np.asarray(problem.data).shape
+    kept = np.asarray(regime_weights(per, problem.regime_threshold)) > 0
+    chaos, nu = chaotic_part(per, problem.dither_offsets(per.shape[1]), kept)
+    whiten = np.zeros((n_rec * n_band, n_rec * n_band))
+    for k in range(n_rec):
+        chol = np.linalg.cholesky(shrunk_correlation(chaos[k, kept[k]]))
+        sl = slice(k * n_band, (k + 1) * n_band)
+        whiten[sl, sl] = np.linalg.inv(chol)
+    chi2_rec = np.sum((whiten @ r_data).reshape(n_rec, n_band) ** 2, axis=1)
+    row_scale = np.repeat(1.0 / np.sqrt(np.maximum(1.0, chi2_rec / dof_rec)), n_band)
+    return NoiseModel(np.asarray(problem.sigma), whiten, row_scale, chi2_rec, int(nu.min()))
+
+
+@dataclasses.dataclass(frozen=True)
 class FitResult:
     """What :func:`identify` returns."""
 
@@ -288,6 +333,8 @@ class FitResult:
     band_centers: np.ndarray
     map_params: list[dict[str, float]]
     chi2_recordings: list[float] = dataclasses.field(default_factory=list)
+    #: the data rows' weighting at the optimum, shared with :func:`rattlefit.sample.sample`
+    noise: NoiseModel | None = dataclasses.field(default=None, repr=False, compare=False)
 
     @property
     def p_value(self) -> float:
@@ -845,43 +892,26 @@ def identify(
     n_free = sum(1 for s in specs if s.log_sd is None)
     dof = max(n_data - n_free, 1)
     dof_rec = dof / n_rec  # each recording's share
-    whiten = None
-    row_scale = None  # 1/√(inflation) of each recording's data rows, fixed at the optimum
-    chi2_rec = None
-    sigma_dof = None  # degrees of freedom of the spread at the optimum
+    noise: NoiseModel | None = None  # the data rows' weighting, fixed at the optimum
 
     def laplace(zk):
-        nonlocal problem, whiten, sigma, row_scale, chi2_rec, sigma_dof
-        r, jac, per, noise = _central_jacobian(problem, zk, scale=1.5, y0=y0_cov)
-        if whiten is None:
+        nonlocal problem, noise, sigma
+        r, jac, per, jac_noise = _central_jacobian(problem, zk, scale=1.5, y0=y0_cov)
+        if noise is None:
             # at the optimum: the band spread and correlations come from these realisations,
             # and the residual and Jacobian are re-expressed in their units
             old = np.asarray(problem.sigma)
             sigma = band_sigma(per)
-            kept = np.asarray(regime_weights(per, problem.regime_threshold)) > 0
             problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
             ratio = (old / np.asarray(sigma)).reshape(-1)
             r = np.concatenate([r[:n_data] * ratio, r[n_data:]])
             jac = np.concatenate([jac[:n_data] * ratio[:, None], jac[n_data:]])
-            noise = noise * np.outer(ratio, ratio)[None]
-            # generalised least squares: whiten the data rows with the shrunk band
-            # correlation of each recording (chaotic excursions move many bands together)
-            whiten = np.zeros((n_data, n_data))
-            chaos, nu = chaotic_part(per, problem.dither_offsets(per.shape[1]), kept)
-            sigma_dof = int(nu.min())
-            for k in range(n_rec):
-                chol = np.linalg.cholesky(shrunk_correlation(chaos[k, kept[k]]))
-                sl = slice(k * n_band, (k + 1) * n_band)
-                whiten[sl, sl] = np.linalg.inv(chol)
-            # each recording's rows are inflated by its own reduced χ² where that exceeds
-            # one (a Birge ratio per recording): one recording that the model misses must
-            # not widen what another recording measures well
-            chi2_rec = np.sum((whiten @ r[:n_data]).reshape(n_rec, n_band) ** 2, axis=1)
-            row_scale = np.repeat(1.0 / np.sqrt(np.maximum(1.0, chi2_rec / dof_rec)), n_band)
-        r_w = whiten @ r[:n_data]
-        dw = row_scale[:, None] * whiten
+            jac_noise = jac_noise * np.outer(ratio, ratio)[None]
+            noise = _noise_model(problem, per, r[:n_data], dof_rec)
+        r_w = noise.whiten @ r[:n_data]
+        dw = noise.row_scale[:, None] * noise.whiten
         j_w = dw @ jac[:n_data]
-        noise_w = np.asarray([np.trace(dw @ c @ dw.T) for c in noise])
+        noise_w = np.asarray([np.trace(dw @ c @ dw.T) for c in jac_noise])
         chi2_k = float(np.sum(r_w**2))
         info = _debiased_information(j_w, noise_w, jac[n_data:])
         return chi2_k, np.linalg.inv(info), np.asarray(problem.mean_of(per))
@@ -907,17 +937,17 @@ def identify(
         sig = np.asarray(band_sigma(per))
         r = ((np.asarray(problem.data) - np.asarray(problem.mean_of(per))) / sig).reshape(-1)
         prior = np.asarray(problem.prior_rows(jnp.asarray(zk)))
-        quad = np.sum((row_scale * (whiten @ r)) ** 2)
-        return float(quad + 2 * np.sum(np.log(sig)) + np.sum(prior**2))
+        return float(noise.quadratic(r) + 2 * np.sum(np.log(sig)) + np.sum(prior**2))
 
     # the threshold: χ²₁ (95 %), plus the Monte Carlo noise of a difference of two costs of
     # n realisations at 95 % one-sided: each cost varies by ≈ 4χ²/(n+1) from the mean
     # features (in the inflated units: divided by the inflation squared) and ≈ 2B/ν from
     # the log-spread term (ν the spread's degrees of freedom, see chaotic_part)
     n_cov = y0_cov.shape[1]
+    chi2_rec = noise.chi2_recordings
     inflation = np.maximum(1.0, chi2_rec / dof_rec)
     var_cost = np.sum(4.0 * np.maximum(chi2_rec, dof_rec) / (n_cov + 1) / inflation**2)
-    var_cost += 2.0 * n_data / sigma_dof
+    var_cost += 2.0 * n_data / noise.sigma_dof
     threshold = CHI2_1_95 + 1.645 * math.sqrt(2.0 * var_cost)
     profiles, cost_opt = _profile_scan(problem, z, cov, y0_cov, cost_of)
 
@@ -999,6 +1029,7 @@ def identify(
             for i in range(problem.n_rec)
         ],
         chi2_recordings=[float(c) for c in chi2_rec],
+        noise=noise,
     )
 
 

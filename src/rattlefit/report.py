@@ -14,6 +14,7 @@ from ._util import atomic_write
 from .fit import FitResult
 from .recording import Recording
 from .rig import setup
+from .sample import Posterior
 from .simulate import simulate
 from .spectra import welch_psd
 
@@ -155,4 +156,78 @@ def plot_fit(result: FitResult, recordings: list[Recording], directory: str | Pa
     fig.colorbar(im, ax=ax, label="correlation")
     ax.set_title("parameter correlations (Laplace)")
     out.append(_save(fig, directory / "correlation.png"))
+    return out
+
+
+def format_posterior(post: Posterior) -> str:
+    """Credible intervals (median, 95 %), effective sample sizes and the chain's diagnostics."""
+    rows = [("parameter", "median", "95 % credible interval", "unit", "ESS", "τ (steps)")]
+    for (name, (med, lo, hi)), unit, ess, tau in zip(
+        post.intervals().items(), post.units, post.ess, post.autocorr_time, strict=True
+    ):
+        mult, shown = DISPLAY.get(unit, (1.0, unit))
+        rows.append(
+            (
+                name,
+                f"{med * mult:.4g}",
+                f"[{lo * mult:.4g}, {hi * mult:.4g}]",
+                shown,
+                f"{ess:.0f}",
+                f"{tau:.1f}",
+            )
+        )
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    steps, walkers = post.chain.shape[:2]
+    lines.append(
+        f"{walkers} walkers × {steps} steps (first {post.burn_in} discarded); acceptance "
+        f"{np.mean(post.acceptance):.2f}; {post.n_evaluations} points simulated; seed "
+        f"{post.seed}; {post.wall_time:.1f} s"
+    )
+    if not post.reliable:
+        lines.append(
+            "note: the kept chain is shorter than 50 autocorrelation times, so τ and the ESS "
+            "are rough; continue the chain (same --backend, more --steps) to firm them up."
+        )
+    return "\n".join(lines)
+
+
+def plot_posterior(post: Posterior, directory: str | Path) -> list[Path]:
+    """Trace of every walker (burn-in shaded) and the pairwise marginals of the kept draws."""
+    directory = Path(directory)
+    names, p = post.names, len(post.names)
+    scale = [DISPLAY.get(u, (1.0, u)) for u in post.units]
+    fig, axes = plt.subplots(p, 1, figsize=(9, 1.6 * p), sharex=True, squeeze=False)
+    for i, ax in enumerate(axes[:, 0]):
+        ax.plot(post.chain[:, :, i] * scale[i][0], color="k", lw=0.4, alpha=0.35)
+        ax.axvspan(0, post.burn_in, color="0.85", lw=0)
+        ax.set_ylabel(f"{names[i]}\n({scale[i][1]})" if scale[i][1] else names[i], fontsize=8)
+    axes[-1, 0].set_xlabel("step (shaded: burn-in, discarded)")
+    out = [_save(fig, directory / "posterior_trace.png")]
+    kept = post.kept * np.array([m for m, _ in scale])
+    fig, axes = plt.subplots(p, p, figsize=(1.9 * p, 1.9 * p), squeeze=False)
+    for i in range(p):
+        for j in range(p):
+            ax = axes[i, j]
+            if j > i:
+                ax.axis("off")
+                continue
+            if i == j:
+                ax.hist(kept[:, i], bins=40, color="C0", histtype="stepfilled", alpha=0.7)
+                lo, hi = np.percentile(kept[:, i], [2.5, 97.5])
+                for x in (lo, hi):
+                    ax.axvline(x, color="k", ls=":", lw=0.8)
+                ax.set_yticks([])
+            else:
+                ax.hist2d(kept[:, j], kept[:, i], bins=40, cmap="Blues")
+            if i == p - 1:
+                ax.set_xlabel(names[j], fontsize=8)
+            else:
+                ax.set_xticklabels([])
+            if j == 0 and i > 0:
+                ax.set_ylabel(names[i], fontsize=8)
+            ax.tick_params(labelsize=6)
+    fig.suptitle("posterior: pairwise marginals (dotted: 95 % credible interval)")
+    out.append(_save(fig, directory / "posterior_pairs.png"))
     return out

@@ -1,0 +1,187 @@
+"""The posterior sampler against closed forms: priors, a linear-Gaussian posterior, resuming.
+
+The sampler's parts that do not simulate (priors and their Jacobian, the weighted Gaussian
+likelihood, the chain loop and its HDF5 backend) are checked on targets whose posterior is
+known in closed form; the synthetic-recording check of the whole posterior runs with
+RATTLEFIT_SLOW=1.
+"""
+
+import math
+import os
+
+import emcee
+import h5py
+import numpy as np
+import pytest
+from scipy import stats
+
+import rattlefit as rf
+from rattlefit.errors import RattlefitError
+from rattlefit.fit import FitOptions, NoiseModel, ParameterSpec, identify
+from rattlefit.recording import OperatingPoint
+from rattlefit.sample import (
+    LogPosterior,
+    SampleOptions,
+    _Context,
+    _write_context,
+    run_chain,
+    sample,
+)
+from rattlefit.synthetic import synthesize
+
+
+def _log_values(specs, z):
+    """log v of each parameter for z (..., P), as ParameterSpec.value defines it."""
+    u = 1.0 / (1.0 + np.exp(-z))
+    return np.stack(
+        [math.log(s.lower) + s.log_range * u[..., i] for i, s in enumerate(specs)], axis=-1
+    )
+
+
+def _independent(chain, burn):
+    """Draws thinned by twice the largest autocorrelation time (close to independent)."""
+    tau = np.max(emcee.autocorr.integrated_time(chain[burn:], tol=0, quiet=True))
+    return chain[burn :: max(1, int(2 * tau))].reshape(-1, chain.shape[-1])
+
+
+def _identity_noise(n_band, sigma=1.0):
+    return NoiseModel(
+        np.full((1, n_band), sigma), np.eye(n_band), np.ones(n_band), np.zeros(1), 100
+    )
+
+
+def test_without_data_the_chain_draws_the_priors():
+    # a log-uniform prior over a range of 5000 and a log-normal one truncated at ±3.2 sd: the
+    # chain moves in the logit coordinate z, so without the Jacobian term the log-uniform
+    # draws would pile up at the range's ends (KS statistic ≈ 0.3 instead of ≈ 0.03)
+    specs = (
+        ParameterSpec("a", "m", 1e-6, 5e-3),
+        ParameterSpec("viscosity_scale", "1", 0.2, 5.0, center=1.0, log_sd=0.5),
+    )
+    data = np.zeros((1, 3))
+    target = LogPosterior(specs, data, _identity_noise(3), lambda zs: np.zeros((len(zs), 1, 3)))
+    sampler = run_chain(
+        target, np.zeros(2), np.eye(2), n_walkers=32, n_steps=2500, seed=3, init_scale=1.0
+    )
+    draws = _log_values(specs, _independent(sampler.get_chain(), 500))
+    assert len(draws) > 1000
+    lo, hi = math.log(1e-6), math.log(5e-3)
+    uniform = stats.kstest(draws[:, 0], stats.uniform(lo, hi - lo).cdf)
+    bound = (math.log(0.2) / 0.5, math.log(5.0) / 0.5)
+    truncated = stats.kstest(draws[:, 1], stats.truncnorm(*bound, loc=0.0, scale=0.5).cdf)
+    assert uniform.pvalue > 1e-3, uniform
+    assert truncated.pvalue > 1e-3, truncated
+
+
+def test_linear_gaussian_posterior_matches_the_closed_form():
+    # features linear in log v, correlated bands (whitening), an inflated recording
+    # (row_scale) and log-normal priors wide enough that their truncation does not matter:
+    # the posterior of log v is Gaussian with precision AᵀC⁻¹A + P⁻¹
+    rng = np.random.default_rng(0)
+    n_band, specs = (
+        6,
+        tuple(
+            ParameterSpec(f"p{i}", "1", math.exp(-4.0), math.exp(4.0), center=1.0, log_sd=0.4)
+            for i in range(3)
+        ),
+    )
+    a = rng.normal(size=(n_band, 3))
+    corr = 0.5 ** np.abs(np.subtract.outer(np.arange(n_band), np.arange(n_band)))
+    whiten = np.linalg.inv(np.linalg.cholesky(corr))
+    sigma, scale = 0.3, 1.0 / math.sqrt(2.0)
+    noise = NoiseModel(
+        np.full((1, n_band), sigma), whiten, np.full(n_band, scale), np.zeros(1), 100
+    )
+    truth = np.array([0.3, -0.2, 0.1])
+    data = (a @ truth + sigma * rng.normal(size=n_band))[None]
+    target = LogPosterior(specs, data, noise, lambda zs: (_log_values(specs, zs) @ a.T)[:, None, :])
+    c_inv = whiten.T @ np.diag(np.full(n_band, scale**2)) @ whiten / sigma**2
+    precision = a.T @ c_inv @ a + np.eye(3) / 0.4**2
+    cov = np.linalg.inv(precision)
+    mean = cov @ (a.T @ c_inv @ data[0])
+    z0 = np.array([s.z_of(math.exp(m)) for s, m in zip(specs, mean, strict=True)])
+    sampler = run_chain(target, z0, 0.1 * np.eye(3), n_walkers=32, n_steps=3000, seed=1)
+    draws = _log_values(specs, sampler.get_chain(discard=500, flat=True))
+    sd = np.sqrt(np.diag(cov))
+    assert np.all(np.abs(draws.mean(axis=0) - mean) < 0.1 * sd), (draws.mean(axis=0), mean)
+    ratio = np.cov(draws.T) / np.outer(sd, sd)
+    assert np.allclose(ratio, cov / np.outer(sd, sd), atol=0.08), (ratio, cov)
+
+
+def test_a_resumed_chain_equals_an_uninterrupted_one(tmp_path):
+    specs = (ParameterSpec("a", "m", 1e-6, 5e-3), ParameterSpec("b", "1", 0.1, 10.0))
+    target = LogPosterior(
+        specs,
+        np.zeros((1, 2)),
+        _identity_noise(2, 0.5),
+        lambda zs: np.tanh(zs)[:, None, :],
+    )
+
+    def chain(path, steps):
+        backend = emcee.backends.HDFBackend(str(path), name="mcmc")
+        for n in steps:  # each call continues the chain in the file to n steps
+            backend = emcee.backends.HDFBackend(str(path), name="mcmc")
+            run_chain(
+                target, np.zeros(2), np.eye(2), n_walkers=8, n_steps=n, seed=5, backend=backend
+            )
+        return backend.get_chain()
+
+    whole = chain(tmp_path / "whole.h5", [60])
+    pieces = chain(tmp_path / "pieces.h5", [25, 60])
+    assert whole.shape == (60, 8, 2)
+    np.testing.assert_array_equal(whole, pieces)
+    other = chain(tmp_path / "other.h5", [60])  # the seed decides, so the same seed repeats
+    np.testing.assert_array_equal(whole, other)
+
+
+@pytest.fixture(scope="module")
+def small_recording():
+    g = rf.table2_pair("II", center_distance_mm=65.0)
+    op = OperatingPoint("boundary", 20.0, 52.36, 5.236, 8.0)
+    p = rf.RattleParams(0.085e-3, 0.025, 0.4942, g.backlash)
+    rec, _ = synthesize(g, op, p, seed=11, duration=1.0)
+    return rec
+
+
+def test_a_chain_file_of_other_recordings_is_refused(tmp_path, small_recording):
+    path = tmp_path / "chain.h5"
+    n_band = 30
+    ctx = _Context(
+        FitOptions(),
+        np.zeros(6),
+        np.eye(6),
+        np.zeros((1, n_band)),  # not this recording's features
+        _identity_noise(n_band),
+        ["elsewhere.h5"],
+        0,
+    )
+    _write_context(path, ctx)
+    with pytest.raises(RattlefitError, match=r"chain\.h5: /rattlefit/data: .*elsewhere\.h5"):
+        sample([small_recording], backend=path)
+
+
+def test_a_foreign_hdf5_file_is_refused_and_kept(tmp_path, small_recording):
+    path = tmp_path / "notes.h5"
+    with h5py.File(path, "w") as f:
+        f["x"] = np.arange(3)
+    with pytest.raises(RattlefitError, match=r"notes\.h5: /rattlefit: missing"):
+        sample([small_recording], backend=path)
+    with h5py.File(path, "r") as f:  # nothing lost
+        np.testing.assert_array_equal(f["x"][:], np.arange(3))
+
+
+@pytest.mark.skipif(
+    not os.environ.get("RATTLEFIT_SLOW"),
+    reason="a fit and a 6-parameter chain (~25 min on 2 cores); run with RATTLEFIT_SLOW=1",
+)
+def test_posterior_of_a_synthetic_recording_holds_the_truth(tmp_path):
+    g = rf.table2_pair("II", center_distance_mm=65.0)
+    op = OperatingPoint("boundary", 20.0, 52.36, 5.236, 8.0)
+    p = rf.RattleParams(0.085e-3, 0.025, 0.4942, g.backlash)
+    rec, _ = synthesize(g, op, p, seed=11)
+    fit = identify([rec], FitOptions(seed=0))
+    post = sample([rec], fit, SampleOptions(n_steps=150, seed=0), backend=tmp_path / "c.h5")
+    ci = post.intervals()
+    for name, truth in (("a", 0.085e-3), ("drag_torque", 0.025), ("viscosity", 0.4942)):
+        _, lo, hi = ci[name]
+        assert lo <= truth <= hi, (name, lo, truth, hi)
