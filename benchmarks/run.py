@@ -1,6 +1,6 @@
 """Benchmarks of rattlefit against the sharp scipy reference, at the shared recordings.
 
-Run ``python benchmarks/run.py [--quick] [--identify] [--json out.json]``.
+Run ``python benchmarks/run.py [--quick] [--identify] [--posterior [STEPS]] [--json out.json]``.
 
 Every measured step runs in its own fresh ``multiprocessing`` "spawn" process, so that its peak
 resident memory (``ru_maxrss``) is its own; a baseline process that only imports rattlefit gives
@@ -46,6 +46,8 @@ P_FD = 6  # fitted parameters (a, T_b, μ, backlash, h_min, stiffness scale)
 FD_LOG_STEP = 0.15  # ParameterSpec.fd_log_step
 AIM_FORWARD, TARGET_FORWARD = 50.0, 100.0  # × faster than the reference at matched accuracy
 AIM_IDENTIFY = 60.0  # s, one 3-s recording, compile included
+AIM_POSTERIOR_ESS, AIM_POSTERIOR_S = 400.0, 600.0  # ESS per parameter within this wall time
+POSTERIOR_STEPS = 150  # default chain length of the posterior step (16 walkers)
 
 PARAM_NAMES = ("a", "T_b", "mu", "backlash", "h_min", "k_scale")
 
@@ -522,6 +524,47 @@ def step_identify(args):
         }
 
 
+def step_posterior(args):
+    """identify() then sample() of the same 3-s recording: wall times, ESS, ESS per second."""
+    try:
+        from rattlefit.fit import FitOptions, identify
+        from rattlefit.recording import read_recording
+        from rattlefit.sample import SampleOptions, sample
+
+        rec = read_recording(RECORDINGS / args["file"])
+        t0 = time.perf_counter()
+        fit = identify([rec], FitOptions(), progress=lambda msg: _say(f"identify: {msg}"))
+        t_fit = time.perf_counter() - t0
+        post = sample(
+            [rec],
+            fit,
+            SampleOptions(n_steps=args["steps"], seed=0),
+            progress=lambda msg: _say(f"sample: {msg}"),
+        )
+        t_sample = time.perf_counter() - t0 - t_fit
+        return {
+            "ok": True,
+            "fit_s": t_fit,
+            "sample_s": t_sample,
+            "walkers": int(post.chain.shape[1]),
+            "steps": int(post.chain.shape[0]),
+            "burn_in": post.burn_in,
+            "evaluations": post.n_evaluations,
+            "realisations": FitOptions().n_realisations,
+            "acceptance": float(post.acceptance.mean()),
+            "reliable": post.reliable,
+            "ess": dict(zip(post.names, map(float, post.ess), strict=True)),
+            "tau": dict(zip(post.names, map(float, post.autocorr_time), strict=True)),
+            "intervals": post.intervals(),
+        }
+    except Exception as exc:
+        return {
+            "ok": False,
+            "error": f"{type(exc).__name__}: {exc}",
+            "traceback": traceback.format_exc(limit=4),
+        }
+
+
 STEPS = {
     "baseline": step_baseline,
     "reference": step_reference,
@@ -530,6 +573,7 @@ STEPS = {
     "batch": step_batch,
     "jacobian": step_jacobian,
     "identify": step_identify,
+    "posterior": step_posterior,
 }
 
 
@@ -814,6 +858,40 @@ def report(res: dict) -> str:
             out.append(f"   {k:>16s} = {est} [{v['lower']:.3g}, {v['upper']:.3g}] {v['unit']}")
     out.append("")
 
+    # 3b posterior
+    post = res.get("posterior")
+    out.append(
+        f"3b. posterior: identify() then sample() of {IDENTIFY_RECORDING} (emcee, synthetic "
+        "likelihood), compile included"
+    )
+    if post is None:
+        out.append("   not run (pass --posterior [STEPS])")
+    elif not post["ok"]:
+        out.append(f"   ERROR: {post['error']}")
+    else:
+        sims = post["evaluations"] * post["realisations"]
+        out.append(
+            f"   fit {post['fit_s']:.0f} s + chain {post['sample_s']:.0f} s: {post['walkers']} "
+            f"walkers × {post['steps']} steps (burn-in {post['burn_in']}), "
+            f"{post['evaluations']} points = {sims} simulations "
+            f"({post['sample_s'] / max(sims, 1) * 1e3:.0f} ms each on all cores), acceptance "
+            f"{post['acceptance']:.2f}{'' if post['reliable'] else ' (chain < 50 τ: τ, ESS rough)'}"
+        )
+        rows = []
+        for k, ess in post["ess"].items():
+            med, lo, hi = post["intervals"][k]
+            rows.append(
+                [
+                    k,
+                    f"{med:.4g} [{lo:.3g}, {hi:.3g}]",
+                    f"{post['tau'][k]:.1f}",
+                    f"{ess:.0f}",
+                    f"{ess / post['sample_s']:.3f}",
+                ]
+            )
+        out.append(table(["parameter", "median [95 %]", "τ steps", "ESS", "ESS/s"], rows))
+    out.append("")
+
     # 4 memory
     out.append("4. Peak memory (ru_maxrss of a fresh spawned process per step)")
     base = res["memory"]["baseline"]
@@ -859,7 +937,22 @@ def report(res: dict) -> str:
                 verdict(idf["wall_s"], AIM_IDENTIFY, higher_is_better=False),
             ]
         )
-    rows.append(["posterior", "not implemented yet", "—"])
+    if post is None:
+        rows.append(
+            [f"posterior ESS ≥ {AIM_POSTERIOR_ESS:g} < {AIM_POSTERIOR_S:g} s", "not run", "—"]
+        )
+    elif not post["ok"]:
+        rows.append(["posterior", "error", "MISS (posterior failed)"])
+    else:
+        rate = min(post["ess"].values()) / post["sample_s"]  # the slowest parameter
+        needed = post["fit_s"] + AIM_POSTERIOR_ESS / max(rate, 1e-12)
+        rows.append(
+            [
+                f"posterior ESS ≥ {AIM_POSTERIOR_ESS:g} per parameter < {AIM_POSTERIOR_S:g} s",
+                f"{needed:.0f} s projected (fit + {AIM_POSTERIOR_ESS:g} / min ESS/s)",
+                verdict(needed, AIM_POSTERIOR_S, higher_is_better=False),
+            ]
+        )
     rows.append(["diagnose", "not implemented yet", "—"])
     out.append(table(["aim", "measured", "verdict"], rows))
     if unmatched:
@@ -875,6 +968,15 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="one operating point, fewer repetitions")
     ap.add_argument("--identify", action="store_true", help="also time one identify() run")
+    ap.add_argument(
+        "--posterior",
+        nargs="?",
+        type=int,
+        const=POSTERIOR_STEPS,
+        default=None,
+        metavar="STEPS",
+        help=f"also time a posterior (identify + a chain of STEPS, default {POSTERIOR_STEPS})",
+    )
     ap.add_argument("--json", type=Path, help="write all results to this JSON file")
     args = ap.parse_args(argv)
 
@@ -916,6 +1018,11 @@ def main(argv=None) -> int:
     if args.identify:
         res["identify"] = run_step("identify", {"file": IDENTIFY_RECORDING})
         res["memory"]["identify"] = res["identify"]["peak_mib"]
+    if args.posterior:
+        res["posterior"] = run_step(
+            "posterior", {"file": IDENTIFY_RECORDING, "steps": args.posterior}
+        )
+        res["memory"]["posterior"] = res["posterior"]["peak_mib"]
     res["wall_s"] = time.perf_counter() - t0
     res["load_after"] = os.getloadavg()
 
