@@ -34,11 +34,16 @@ IDENTIFY_RECORDING = "pairII_boundary_65.0_10pct_8Hz.h5"
 DURATION = 3.0  # recorded time, s
 BURN_IN = 0.5  # simulated before the first sample, s
 M = 4  # realisations per ensemble, released at s·c for s in linspace(-0.9, 0.9, M)
-RTOLS = (1e-5, 1e-6, 1e-7)  # rattlefit tolerances tried; atol = ATOL_PER_RTOL · rtol
+RTOLS = (1e-4, 1e-5, 1e-6, 1e-7)  # rattlefit tolerances tried; atol = ATOL_PER_RTOL · rtol
 ATOL_PER_RTOL = 1e-3  # 1e-6 → 1e-9 (simulate's default), 1e-7 → 1e-10 (test_convergence)
 REF_TOL = (1e-8, 1e-11)  # the reference's own defaults: the ground truth of the comparison
 REF_LOOSE_TOL = (1e-6, 1e-9)  # the reference at rattlefit's default tolerances (for context)
 Z_MATCH = 2.0  # rms z below which two ensembles' mean features agree
+# log10 floor of that standard error: FitOptions.sigma_floor, the smallest band spread the fit
+# resolves. Without it the periodic orbit of the mild point (pairII_boundary_65.0, h_min 2 µm)
+# has z ≈ 20–30 at every rtol, from the contact smoothing (0.07 in the 8 Hz band; 0.03 at a
+# tenth of the contact width, 0.01 at 3 %), not from the solver tolerance.
+Z_FLOOR = 0.03
 BATCH_SIZES = (8, 32)
 BATCH_MODES = ("map", "vmap")
 FIT_RTOL = 1e-6  # simulate()'s default rtol, at which the Jacobians are costed
@@ -602,11 +607,13 @@ def run_step(step: str, args: dict) -> dict:
 
 
 def rms_z(f_a, f_b) -> float:
-    """rms over bands of the ensemble-mean difference in units of its standard error."""
+    """rms over bands of the ensemble-mean difference in units of its standard error, which
+    is floored at :data:`Z_FLOOR` (where rattle locks into a periodic orbit the realisations
+    agree to 1e-3 and the bare standard error would call any smoothing artefact a mismatch)."""
     import numpy as np
 
     a, b = np.asarray(f_a), np.asarray(f_b)
-    se = np.sqrt((a.var(0, ddof=1) + b.var(0, ddof=1)) / a.shape[0])
+    se = np.sqrt((a.var(0, ddof=1) + b.var(0, ddof=1)) / a.shape[0] + Z_FLOOR**2)
     return float(np.sqrt(np.mean(((a.mean(0) - b.mean(0)) / se) ** 2)))
 
 

@@ -185,3 +185,36 @@ def test_posterior_of_a_synthetic_recording_holds_the_truth(tmp_path):
     for name, truth in (("a", 0.085e-3), ("drag_torque", 0.025), ("viscosity", 0.4942)):
         _, lo, hi = ci[name]
         assert lo <= truth <= hi, (name, lo, truth, hi)
+
+
+def test_posterior_summaries_of_independent_normal_draws():
+    # iid N(μ, s²) draws: the credible interval is μ ± 1.96 s, and arviz's ESS is about the
+    # number of draws (every walker is one chain)
+    import arviz as az
+
+    from rattlefit.sample import Posterior
+
+    rng = np.random.default_rng(2)
+    chain = 1.5 + 0.2 * rng.standard_normal((400, 16, 1))
+    post = Posterior(
+        names=["x"],
+        units=["1"],
+        chain=chain,
+        log_prob=np.zeros((400, 16)),
+        acceptance=np.full(16, 0.3),
+        autocorr_time=np.ones(1),
+        ess=np.full(1, 16 * 300.0),
+        reliable=True,
+        burn_in=100,
+        seed=0,
+        wall_time=1.0,
+        n_evaluations=6400,
+        recordings=[],
+    )
+    med, lo, hi = post.intervals()["x"]
+    assert abs(med - 1.5) < 0.01 and abs(lo - (1.5 - 1.96 * 0.2)) < 0.02, (lo, med, hi)
+    assert abs(hi - (1.5 + 1.96 * 0.2)) < 0.02
+    ess = float(az.ess(post.to_arviz())["x"])
+    assert 0.7 * 4800 < ess < 1.3 * 4800, ess
+    doc = post.to_json()
+    assert doc["parameters"]["x"]["unit"] == "1" and doc["sampler"]["burn_in"] == 100
