@@ -312,7 +312,7 @@ def sample(files, backend, steps, walkers, burn_in, seed, quick_fit, output, plo
         atomic_write(output, lambda tmp: tmp.write_text(text))
         click.echo(f"wrote {output}", err=True)
     if plot_dir is not None:
-        for path in plot_posterior(post, plot_dir):
+        for path in plot_posterior(post, plot_dir, recordings):
             click.echo(f"wrote {path}", err=True)
 
 

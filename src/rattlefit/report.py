@@ -193,8 +193,11 @@ def format_posterior(post: Posterior) -> str:
     return "\n".join(lines)
 
 
-def plot_posterior(post: Posterior, directory: str | Path) -> list[Path]:
-    """Trace of every walker (burn-in shaded) and the pairwise marginals of the kept draws."""
+def plot_posterior(
+    post: Posterior, directory: str | Path, recordings: list[Recording] | None = None
+) -> list[Path]:
+    """Trace of every walker (burn-in shaded), the pairwise marginals of the kept draws and,
+    given the recordings, a posterior predictive check of the band spectrum (8 draws)."""
     directory = Path(directory)
     names, p = post.names, len(post.names)
     scale = [DISPLAY.get(u, (1.0, u)) for u in post.units]
@@ -230,4 +233,18 @@ def plot_posterior(post: Posterior, directory: str | Path) -> list[Path]:
             ax.tick_params(labelsize=6)
     fig.suptitle("posterior: pairwise marginals (dotted: 95 % credible interval)")
     out.append(_save(fig, directory / "posterior_pairs.png"))
+    if recordings:
+        draws, data, centres = post.predictive_features(recordings)
+        for k, rec in enumerate(recordings):
+            fig, ax = plt.subplots(figsize=(9, 4.5))
+            for i, d in enumerate(draws[:, k]):
+                label = "mean of the realisations at posterior draws" if i == 0 else None
+                ax.loglog(centres, 10**d, color="C0", lw=0.8, alpha=0.5, label=label)
+            ax.loglog(centres, 10 ** data[k], "o", ms=3, color="k", label="measured bands")
+            ax.set_xlabel("frequency (Hz)")
+            ax.set_ylabel("band PSD of Δθ* (rad²/Hz)")
+            ax.set_title(f"posterior predictive: {Path(rec.path or f'recording {k}').name}")
+            ax.legend(fontsize=8)
+            name = f"posterior_predictive_{k}_{Path(rec.path or 'recording').stem}.png"
+            out.append(_save(fig, directory / name))
     return out

@@ -161,11 +161,30 @@ class Posterior:
     n_evaluations: int
     recordings: list[str]
     backend: str | None = None
+    #: the chain in the fit's unconstrained coordinates (for predictive simulations)
+    chain_z: np.ndarray | None = dataclasses.field(default=None, repr=False)
+    #: the options of the fit whose realisations and noise model define the target
+    fit_options: FitOptions | None = dataclasses.field(default=None, repr=False)
 
     @property
     def kept(self) -> np.ndarray:
         """Draws after the burn-in, flattened over walkers: (n, P)."""
         return self.chain[self.burn_in :].reshape(-1, self.chain.shape[-1])
+
+    def predictive_features(self, recordings: Sequence[Recording], n_draws: int = 8, seed=0):
+        """Mean simulated features at ``n_draws`` seeded draws of the kept chain, with the
+        measured features and the band centres: ``(draws (n, R, B), data (R, B), centres (B,))``.
+        The draws use the target's own realisations (a posterior predictive check of the
+        statistic the likelihood compares)."""
+        if self.chain_z is None or self.fit_options is None:
+            raise RattlefitError("posterior: no chain in fit coordinates to draw from")
+        problem, _ = _build(
+            recordings, self.fit_options, np.random.default_rng(self.fit_options.seed)
+        )
+        kept = self.chain_z[self.burn_in :].reshape(-1, self.chain_z.shape[-1])
+        pick = np.random.default_rng(seed).choice(len(kept), size=n_draws, replace=False)
+        draws = np.asarray(problem.mean_of(_evaluate(problem, kept[pick])))
+        return draws, np.asarray(problem.data), problem.bands.centers
 
     def intervals(self, level: float = 0.95) -> dict[str, tuple[float, float, float]]:
         """name → (median, lower, upper) of the central credible interval at ``level``."""
@@ -497,4 +516,6 @@ def sample(
         n_evaluations=target.n_evaluations,
         recordings=[str(r.path) for r in recordings],
         backend=None if path is None else str(path),
+        chain_z=sampler.get_chain(),
+        fit_options=ctx.fit_options,
     )
