@@ -788,8 +788,12 @@ def identify(
     ``progress`` receives one-line messages while the fit works.
     """
     options = options or FitOptions()
-    say = progress or (lambda msg: None)
     t_start = time.perf_counter()
+
+    def say(msg: str) -> None:  # progress, stamped with the time since the start
+        if progress is not None:
+            progress(f"[{time.perf_counter() - t_start:5.0f} s] {msg}")
+
     rng = np.random.default_rng(options.seed)
     problem, rigs = _build(recordings, options, rng)
     specs = problem.specs
