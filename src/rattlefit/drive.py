@@ -91,42 +91,31 @@ class Drive(eqx.Module):
             offset=coef[0],
         )
 
-    def _harmonics(self, t):
-        """(ω_k, cos(ω_k t), sin(ω_k t)) for k = 1 … K.
-
-        Only the fundamental's cosine and sine are evaluated; the higher harmonics follow by the
-        angle-addition recurrence (rounding grows like k·ε, 1e-15 at K = 6). This is exact
-        trigonometry, and it takes the drive from 2K transcendental evaluations per call of the
-        vector field to two.
-        """
-        n = self.cos_coeffs.shape[-1]
-        w1 = 2 * jnp.pi * self.frequency
-        c1, s1 = jnp.cos(w1 * t), jnp.sin(w1 * t)
-        cs, ss = [c1], [s1]
-        for _ in range(n - 1):
-            c, s = cs[-1], ss[-1]
-            cs.append(c * c1 - s * s1)
-            ss.append(s * c1 + c * s1)
-        return w1 * jnp.arange(1, n + 1), jnp.stack(cs, axis=-1), jnp.stack(ss, axis=-1)
+    def _phases(self, t):
+        k = jnp.arange(1, self.cos_coeffs.shape[-1] + 1)
+        omega_k = 2 * jnp.pi * self.frequency * k
+        return omega_k, omega_k * t
 
     def angle(self, t: ArrayLike) -> Array:
         """θ1(t), rad (scalar t)."""
-        _, c, s = self._harmonics(t)
+        _, ph = self._phases(t)
         return (
             self.offset
             + self.mean_speed * t
-            + jnp.sum(self.cos_coeffs * c + self.sin_coeffs * s, axis=-1)
+            + jnp.sum(self.cos_coeffs * jnp.cos(ph) + self.sin_coeffs * jnp.sin(ph))
         )
 
     def speed(self, t: ArrayLike) -> Array:
         """θ̇1(t), rad/s (scalar t)."""
-        w, c, s = self._harmonics(t)
-        return self.mean_speed + jnp.sum(w * (-self.cos_coeffs * s + self.sin_coeffs * c), axis=-1)
+        w, ph = self._phases(t)
+        return self.mean_speed + jnp.sum(
+            w * (-self.cos_coeffs * jnp.sin(ph) + self.sin_coeffs * jnp.cos(ph))
+        )
 
     def acceleration(self, t: ArrayLike) -> Array:
         """θ̈1(t), rad/s² (scalar t)."""
-        w, c, s = self._harmonics(t)
-        return -jnp.sum(w**2 * (self.cos_coeffs * c + self.sin_coeffs * s), axis=-1)
+        w, ph = self._phases(t)
+        return -jnp.sum(w**2 * (self.cos_coeffs * jnp.cos(ph) + self.sin_coeffs * jnp.sin(ph)))
 
     def max_acceleration(self) -> float:
         """max |θ̈1| over one period, rad/s² (sampled finely; concrete drives only)."""

@@ -267,11 +267,11 @@ class RattleModel(eqx.Module):
         h_plus, h_minus = c - qe, c + qe  # gaps to the coast and drive flanks
         k = self.mesh_stiffness(theta1, params.stiffness_scale)
         f_mesh = -k * w * (jax.nn.softplus(-h_plus / w) - jax.nn.softplus(-h_minus / w))
-        # Only the film ahead of the motion resists it: the coast-side film (h₊) while v > 0,
-        # the drive-side film (h₋) while v < 0. Selecting that gap first evaluates eq. (5) once
-        # instead of twice; at v = 0 both terms vanish, so the force stays continuous.
-        h_ahead = jnp.where(v > 0, h_plus, h_minus)
-        f_squeeze = -self.squeeze(h_ahead, params) * v * jax.nn.sigmoid(h_ahead / w)
+        apart_plus, apart_minus = jax.nn.sigmoid(h_plus / w), jax.nn.sigmoid(h_minus / w)
+        f_squeeze = (
+            -self.squeeze(h_plus, params) * jnp.maximum(v, 0.0) * apart_plus
+            + self.squeeze(h_minus, params) * jnp.maximum(-v, 0.0) * apart_minus
+        )
         return f_mesh, f_squeeze
 
     def vector_field(self, t, y, args):
