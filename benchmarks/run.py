@@ -493,16 +493,21 @@ def step_jacobian(args):
     return {"points": out, "compile_s": compile_s}
 
 
+def _timed_identify(file: str):
+    """(recording, identify([recording], FitOptions()) result, wall time with compilation)."""
+    from rattlefit.fit import FitOptions, identify
+    from rattlefit.recording import read_recording
+
+    rec = read_recording(RECORDINGS / file)
+    t0 = time.perf_counter()
+    result = identify([rec], FitOptions(), progress=lambda msg: _say(f"identify: {msg}"))
+    return rec, result, time.perf_counter() - t0
+
+
 def step_identify(args):
     """One identification of a 3-s recording, compile included (guarded: fit.py is in flux)."""
     try:
-        from rattlefit.fit import FitOptions, identify
-        from rattlefit.recording import read_recording
-
-        rec = read_recording(RECORDINGS / args["file"])
-        t0 = time.perf_counter()
-        result = identify([rec], FitOptions(), progress=lambda msg: _say(f"identify: {msg}"))
-        wall = time.perf_counter() - t0
+        _, result, wall = _timed_identify(args["file"])
         params = {}
         for k, v in result.parameters.items():
             params[k] = {
@@ -532,21 +537,18 @@ def step_identify(args):
 def step_posterior(args):
     """identify() then sample() of the same 3-s recording: wall times, ESS, ESS per second."""
     try:
-        from rattlefit.fit import FitOptions, identify
-        from rattlefit.recording import read_recording
+        from rattlefit.fit import FitOptions
         from rattlefit.sample import SampleOptions, sample
 
-        rec = read_recording(RECORDINGS / args["file"])
+        rec, fit, t_fit = _timed_identify(args["file"])
         t0 = time.perf_counter()
-        fit = identify([rec], FitOptions(), progress=lambda msg: _say(f"identify: {msg}"))
-        t_fit = time.perf_counter() - t0
         post = sample(
             [rec],
             fit,
             SampleOptions(n_steps=args["steps"], seed=0),
             progress=lambda msg: _say(f"sample: {msg}"),
         )
-        t_sample = time.perf_counter() - t0 - t_fit
+        t_sample = time.perf_counter() - t0
         return {
             "ok": True,
             "fit_s": t_fit,

@@ -33,6 +33,15 @@ def _clean_errors(func):
     return wrapper
 
 
+def _write_json(path: Path, doc: dict) -> None:
+    """Write ``doc`` as JSON through a temporary file renamed into place."""
+    from ._util import atomic_write
+
+    text = json.dumps(doc, indent=2)
+    atomic_write(path, lambda tmp: tmp.write_text(text))
+    click.echo(f"wrote {path}", err=True)
+
+
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="rattlefit")
 def main() -> None:
@@ -236,7 +245,6 @@ def simulate(**o) -> None:
 def identify(files, output, plot_dir, seed, realisations, starts, drive, quick, quiet) -> None:
     """Fit a, T_b and the viscosity to one recording, or jointly to several (one pair and
     lubrication, e.g. a backlash sweep)."""
-    from ._util import atomic_write
     from .fit import FitOptions
     from .fit import identify as run
     from .recording import read_recording
@@ -250,9 +258,7 @@ def identify(files, output, plot_dir, seed, realisations, starts, drive, quick, 
     result = run(recordings, options, progress=say)
     click.echo(format_table(result))
     if output is not None:
-        text = json.dumps(result.to_json(), indent=2)
-        atomic_write(output, lambda tmp: tmp.write_text(text))
-        click.echo(f"wrote {output}", err=True)
+        _write_json(output, result.to_json())
     if plot_dir is not None:
         for path in plot_fit(result, recordings, plot_dir):
             click.echo(f"wrote {path}", err=True)
@@ -290,7 +296,6 @@ def identify(files, output, plot_dir, seed, realisations, starts, drive, quick, 
 def sample(files, backend, steps, walkers, burn_in, seed, quick_fit, output, plot_dir, quiet):
     """Sample the Bayesian posterior of a, T_b, the viscosity and the nuisances (emcee),
     starting from an identification of the same files."""
-    from ._util import atomic_write
     from .fit import FitOptions
     from .recording import read_recording
     from .report import format_posterior, plot_posterior
@@ -308,9 +313,7 @@ def sample(files, backend, steps, walkers, burn_in, seed, quick_fit, output, plo
     post = run(recordings, None, options, backend=backend, progress=say)
     click.echo(format_posterior(post))
     if output is not None:
-        text = json.dumps(post.to_json(), indent=2)
-        atomic_write(output, lambda tmp: tmp.write_text(text))
-        click.echo(f"wrote {output}", err=True)
+        _write_json(output, post.to_json())
     if plot_dir is not None:
         for path in plot_posterior(post, plot_dir, recordings):
             click.echo(f"wrote {path}", err=True)
