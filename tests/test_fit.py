@@ -93,10 +93,12 @@ def test_dry_flanks_are_not_given_a_film():
 @pytest.mark.skipif(
     not os.environ.get("RATTLEFIT_SLOW"),
     reason="three fits, 23 min on one JAX device; run with RATTLEFIT_SLOW=1 (passed in "
-    "session 7, seed 0, one device; failed in session 5, before regimes and screened starts)",
+    "session 7, seed 0, one device, with vector-field rewrites since reverted; failed in "
+    "session 5, before regimes and screened starts)",
 )
 def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
-    # Session 7 (regimes set aside, 128 screened starts; seed 0, one device): passed, 1367 s.
+    # Session 7 (regimes set aside, 128 screened starts; seed 0, one device): passed, 1367 s,
+    # with two exact vector-field rewrites that were then reverted (they change rounding).
     # Measured in session 5 (seed 0, quantisation "encoders", dither 0.1): in a script the joint
     # fit gave T_b [0.0233, 0.0272] N m (log width 0.16, χ² 57 on 58) against 0.55 for the single
     # 65.4 mm file, the truth inside; in the test run it gave width 0.41 (χ² 90 on 58) against
