@@ -44,6 +44,26 @@ def _independent(chain, burn):
     return chain[burn :: max(1, int(2 * tau))].reshape(-1, chain.shape[-1])
 
 
+def _posterior(chain, names, units, *, burn_in, **extra):
+    """A Posterior around ``chain`` (steps, walkers, P) with placeholder diagnostics."""
+    from rattlefit.sample import Posterior
+
+    steps, walkers, p = chain.shape
+    fields = dict(
+        log_prob=np.zeros((steps, walkers)),
+        acceptance=np.full(walkers, 0.3),
+        autocorr_time=np.ones(p),
+        ess=np.full(p, 100.0),
+        reliable=False,
+        seed=0,
+        wall_time=1.0,
+        n_evaluations=0,
+        recordings=[],
+    )
+    fields.update(extra)
+    return Posterior(names=names, units=units, chain=chain, burn_in=burn_in, **fields)
+
+
 def _identity_noise(n_band, sigma=1.0):
     return NoiseModel(
         np.full((1, n_band), sigma), np.eye(n_band), np.ones(n_band), np.zeros(1), 100
@@ -192,25 +212,9 @@ def test_posterior_summaries_of_independent_normal_draws():
     # number of draws (every walker is one chain)
     import arviz as az
 
-    from rattlefit.sample import Posterior
-
     rng = np.random.default_rng(2)
     chain = 1.5 + 0.2 * rng.standard_normal((400, 16, 1))
-    post = Posterior(
-        names=["x"],
-        units=["1"],
-        chain=chain,
-        log_prob=np.zeros((400, 16)),
-        acceptance=np.full(16, 0.3),
-        autocorr_time=np.ones(1),
-        ess=np.full(1, 16 * 300.0),
-        reliable=True,
-        burn_in=100,
-        seed=0,
-        wall_time=1.0,
-        n_evaluations=6400,
-        recordings=[],
-    )
+    post = _posterior(chain, ["x"], ["1"], burn_in=100, ess=np.full(1, 16 * 300.0))
     med, lo, hi = post.intervals()["x"]
     assert abs(med - 1.5) < 0.01 and abs(lo - (1.5 - 1.96 * 0.2)) < 0.02, (lo, med, hi)
     assert abs(hi - (1.5 + 1.96 * 0.2)) < 0.02
@@ -225,27 +229,17 @@ def test_predictive_plot_draws_from_the_kept_chain(tmp_path, small_recording):
     # measured ones within the run-to-run spread (rms 0.1 in log10 for this mild rattle)
     from rattlefit.fit import _build
     from rattlefit.report import plot_posterior
-    from rattlefit.sample import Posterior
 
     options = FitOptions(n_realisations=3)
     problem, _ = _build([small_recording], options, np.random.default_rng(0))
     truth = {"a": 0.085e-3, "drag_torque": 0.025, "viscosity_scale": 1.0}
     z = np.array([s.z_of(truth.get(s.name, s.center)) for s in problem.specs])
     chain_z = np.tile(z, (20, 12, 1)) + 1e-3 * np.random.default_rng(1).normal(size=(20, 12, 6))
-    post = Posterior(
-        names=[s.name for s in problem.specs],
-        units=[s.unit for s in problem.specs],
-        chain=chain_z,
-        log_prob=np.zeros((20, 12)),
-        acceptance=np.full(12, 0.3),
-        autocorr_time=np.ones(6),
-        ess=np.full(6, 100.0),
-        reliable=False,
+    post = _posterior(
+        chain_z,
+        [s.name for s in problem.specs],
+        [s.unit for s in problem.specs],
         burn_in=5,
-        seed=0,
-        wall_time=1.0,
-        n_evaluations=0,
-        recordings=[],
         chain_z=chain_z,
         fit_options=options,
     )

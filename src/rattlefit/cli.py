@@ -42,6 +42,26 @@ def _write_json(path: Path, doc: dict) -> None:
     click.echo(f"wrote {path}", err=True)
 
 
+def _output_options(what: str, plots: str):
+    """The ``-o/--output`` (JSON) and ``--plot DIR`` (PNG) options of a fitting command."""
+
+    def decorate(func):
+        func = click.option(
+            "--plot",
+            "plot_dir",
+            type=click.Path(file_okay=False, path_type=Path),
+            help=f"Write {plots} (PNG) into this directory.",
+        )(func)
+        return click.option(
+            "-o",
+            "--output",
+            type=click.Path(dir_okay=False, path_type=Path),
+            help=f"Write {what} as JSON here.",
+        )(func)
+
+    return decorate
+
+
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="rattlefit")
 def main() -> None:
@@ -205,18 +225,7 @@ def simulate(**o) -> None:
 
 @main.command()
 @click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Write the result as JSON here.",
-)
-@click.option(
-    "--plot",
-    "plot_dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    help="Write plots (PNG) into this directory.",
-)
+@_output_options("the result", "plots")
 @click.option(
     "--seed", type=int, default=0, show_default=True, help="Seeds realisations and starts."
 )
@@ -279,17 +288,8 @@ def identify(files, output, plot_dir, seed, realisations, starts, drive, quick, 
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="Seeds the fit and chain.")
 @click.option("--quick-fit", is_flag=True, help="Start from a FitOptions.quick() fit.")
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Write the credible intervals and diagnostics as JSON here.",
-)
-@click.option(
-    "--plot",
-    "plot_dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    help="Write the trace and pairwise-marginal plots (PNG) into this directory.",
+@_output_options(
+    "the credible intervals and diagnostics", "the trace, pairwise-marginal and predictive plots"
 )
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
 @_clean_errors
