@@ -224,7 +224,7 @@ def test_effects_plug_in(pair2):
     class ExtraDrag(rf.Effect):
         torque: float
 
-        def force(self, t, q, v, model, params, drive):
+        def force(self, t, q, v, f_mesh, model, params, drive):
             return -self.torque / model.r2
 
     class Offset(rf.Effect):

@@ -31,6 +31,8 @@ self-contained module that may add a force and/or a kinematic error to the flank
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -172,19 +174,40 @@ def squeeze_coefficient(h, a, viscosity, radius, width):
 class Effect(eqx.Module):
     """An extra physical effect outside the seed paper's model (the plug-in contract).
 
-    Subclasses override either or both hooks; each must be a pure JAX function of its inputs.
+    An effect is a small immutable module; its array fields are its parameters (SI units).
+    Subclasses override any of three hooks; each must be a pure JAX function of its inputs:
 
     * :meth:`gap_error` — a kinematic error (m) that shifts the flank positions, e.g. wheel
       run-out or tooth errors: the contact and squeeze laws see ``q − gap_error``.
     * :meth:`force` — an extra force on the pitch circle (N), e.g. flank friction or a
-      speed-dependent drag.
+      speed-dependent drag; it is given the contact force ``f_mesh`` already computed.
+    * :meth:`adjust` — the parameters in force at time ``t``, e.g. a viscosity that drifts.
+
+    Two class attributes let :mod:`rattlefit.diagnose` fit the effect: ``name`` (its short
+    name) and ``ranges`` (fitted field → (unit, lower, upper)); the lower end of each range
+    stands for the effect being absent. :mod:`rattlefit.effects` holds the catalogue.
     """
+
+    name: ClassVar[str] = "effect"
+    ranges: ClassVar[dict[str, tuple[str, float, float]]] = {}
 
     def gap_error(self, t, theta1, model: RattleModel, params: RattleParams, drive: Drive):
         return jnp.zeros(())
 
-    def force(self, t, q, v, model: RattleModel, params: RattleParams, drive: Drive):
+    def force(self, t, q, v, f_mesh, model: RattleModel, params: RattleParams, drive: Drive):
         return jnp.zeros(())
+
+    def adjust(self, t, params: RattleParams, model: RattleModel, drive: Drive) -> RattleParams:
+        return params
+
+    def replace(self, **values) -> Effect:
+        """The same effect with the named fields replaced (values as arrays)."""
+        names = tuple(values)
+        return eqx.tree_at(
+            lambda e: tuple(getattr(e, n) for n in names),
+            self,
+            tuple(jnp.asarray(values[n], dtype=float) for n in names),
+        )
 
 
 class RattleModel(eqx.Module):
@@ -277,9 +300,11 @@ class RattleModel(eqx.Module):
     def vector_field(self, t, y, args):
         """dy/dt for diffrax: ``args = (params, drive)``."""
         params, drive = args
+        for e in self.effects:
+            params = e.adjust(t, params, self, drive)
         q, v = y[0], y[1]
         f_mesh, f_squeeze = self.forces(t, q, v, params, drive)
-        f_extra = sum((e.force(t, q, v, self, params, drive) for e in self.effects), 0.0)
+        f_extra = sum((e.force(t, q, v, f_mesh, self, params, drive) for e in self.effects), 0.0)
         drag = params.drag_torque / self.r2
         acc = (f_mesh + f_squeeze + f_extra - drag) / self.mass - self.r1 * drive.acceleration(t)
         return jnp.stack([v, acc])

@@ -1,0 +1,212 @@
+"""The effects catalogue against closed forms: each effect's hook, through the simulator."""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import rattlefit as rf
+from rattlefit import effects as fx
+
+STEADY = dict(burn_in=0.0, rtol=1e-10, atol=1e-15)
+
+
+def _steady_drive(speed=52.36):
+    """Constant primary speed (no fluctuation): θ1 = Ω t."""
+    return rf.Drive.commanded(speed, 0.0, 8.0)
+
+
+def _resting(model, drive, params, *, duration, rate, y0):
+    """Resting on the drive flank from ``y0``, sampled at ``rate``. The contact has no
+    damping, so a release off the static deflection rings for ever: ``y0`` must be it."""
+    return rf.simulate(model, params, drive, duration=duration, sample_rate=rate, y0=y0, **STEADY)
+
+
+DRAG = 0.05  # N m: far above the rattle threshold of a steady drive, and a tiny deflection
+#: Resting on a flank, the undamped contact rings at every change of K(θ1), and the smoothed
+#: contact law rests at a gap of ~ contact_width: a sharp contact and slowly varying windows
+#: make the static deflection exact to within a few per cent of itself.
+RESTING = rf.Smoothing(contact_width=1e-10, mesh_width=0.3)
+
+
+def _static(pair2, model, theta1, extra_compliance=0.0):
+    """The drive flank's static deflection under DRAG: q + c = −F (1/K(θ1) + compliance)."""
+    force = DRAG / pair2.pitch_radius_driven
+    k = np.asarray([float(model.mesh_stiffness(t)) for t in np.atleast_1d(theta1)])
+    return -0.5 * pair2.backlash - force * (1 / k + extra_compliance)
+
+
+def test_runout_moves_the_resting_flank_with_each_wheel(pair2):
+    # Under a steady drive the driven wheel rests on the drive flank at its static
+    # deflection; with run-out the flank, and the wheel with it, moves by the gap error
+    # e1 sin θ1 + e2 sin(θ1 r1/r2), up to m·ë/K (≈1e-10 m here).
+    omega = 52.36
+    drive = _steady_drive(omega)
+    params = rf.RattleParams(0.0, DRAG, 0.49, pair2.backlash)
+    model = rf.RattleModel.from_geometry(pair2, smoothing=RESTING)
+    e1, e2 = 8e-6, 5e-6
+    r = pair2.pitch_radius_driving / pair2.pitch_radius_driven
+    q0 = float(_static(pair2, model, 0.0)[0])
+    opts = dict(duration=0.3, rate=2000.0)
+    plain = _resting(model, drive, params, y0=[q0, 0.0], **opts)
+    runout = fx.Runout(driving_amplitude=e1, driven_amplitude=e2)
+    moving = [q0, omega * (e1 + e2 * r)]  # the flank's velocity at t = 0
+    moved = _resting(model.with_effects(runout), drive, params, y0=moving, **opts)
+    theta1 = np.asarray(plain.theta1)
+    np.testing.assert_allclose(np.asarray(plain.q), _static(pair2, model, theta1), atol=3e-9)
+    expected = e1 * np.sin(theta1) + e2 * np.sin(theta1 * r)
+    np.testing.assert_allclose(np.asarray(moved.q) - np.asarray(plain.q), expected, atol=1e-8)
+
+
+def test_tooth_errors_repeat_once_per_driving_tooth(pair2):
+    omega, amp = 5.0, 2e-6  # slow, so that the mesh order is resolved
+    drive = _steady_drive(omega)
+    params = rf.RattleParams(0.0, DRAG, 0.49, pair2.backlash)
+    model = rf.RattleModel.from_geometry(pair2, smoothing=RESTING)
+    z1 = pair2.teeth_driving
+    q0 = float(_static(pair2, model, 0.0)[0])
+    opts = dict(duration=0.2, rate=5000.0)
+    plain = _resting(model, drive, params, y0=[q0, 0.0], **opts)
+    errors = model.with_effects(fx.ToothErrors(amplitude=amp))
+    moved = _resting(errors, drive, params, y0=[q0, amp * z1 * omega], **opts)
+    theta1 = np.asarray(plain.theta1)
+    expected = amp * np.sin(theta1 * z1)
+    np.testing.assert_allclose(np.asarray(moved.q) - np.asarray(plain.q), expected, atol=1e-8)
+
+
+def test_shaft_compliance_adds_its_deflection_in_series(pair2):
+    # Two springs in series under the drag force F = T_b/r2: q + c = −F (1/K(θ1) + compliance).
+    drive = _steady_drive()
+    params = rf.RattleParams(0.0, DRAG, 0.49, pair2.backlash)
+    model = rf.RattleModel.from_geometry(pair2, smoothing=RESTING)
+    compliance = 1e-7
+    q0 = float(_static(pair2, model, 0.0, compliance)[0])
+    soft = model.with_effects(fx.ShaftCompliance(compliance=compliance))
+    sol = _resting(soft, drive, params, y0=[q0, 0.0], duration=0.1, rate=2000.0)
+    expected = _static(pair2, model, np.asarray(sol.theta1), compliance)
+    np.testing.assert_allclose(np.asarray(sol.q), expected, rtol=0, atol=3e-9)
+    # the compliance's share of the deflection is far above the tolerance
+    assert DRAG / pair2.pitch_radius_driven * compliance > 30 * 3e-9
+
+
+V_IMPACT = 0.2  # m/s
+
+
+def _impact(pair2, effect, v0=V_IMPACT):
+    """Released mid-gap at ``v0`` towards the coast flank with the primary at rest: dry, no
+    drag, constant mesh stiffness. Returns (q, v) sampled at 1 MHz for 6 ms."""
+    drive = rf.Drive(0.0, 8.0, [0.0], [0.0])
+    params = rf.RattleParams(0.0, 0.0, 0.49, pair2.backlash)
+    model = rf.RattleModel.from_geometry(pair2)
+    if effect is not None:
+        model = model.with_effects(effect)
+    sol = rf.simulate(model, params, drive, duration=6e-3, sample_rate=1e6, y0=[0.0, v0], **STEADY)
+    return np.asarray(sol.q), np.asarray(sol.velocity)
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.15, 0.4])
+def test_flank_friction_gives_the_coulomb_restitution(pair2, mu):
+    # A linear contact with Coulomb friction μ|F| against the motion: the spring is stiffer
+    # by (1+μ) while compressing and softer by (1−μ) while rebounding, so the rebound speed is
+    # v0·√((1−μ)/(1+μ)); without friction the model's contact is perfectly elastic.
+    q, v = _impact(pair2, fx.FlankFriction(coefficient=mu) if mu else None)
+    c = 0.5 * pair2.backlash
+    assert q.max() > c  # it did hit the coast flank
+    back = np.flatnonzero((np.arange(q.size) > np.argmax(q)) & (q < 0.5 * c))[0]
+    restitution = -v[back] / V_IMPACT
+    assert restitution == pytest.approx(math.sqrt((1 - mu) / (1 + mu)), rel=0.01)
+
+
+def test_speed_dependent_drag_relaxes_the_flight_speed_exponentially(pair2):
+    # In free flight at constant primary speed, m v̇ = −T_b/r2 − k v / r2²:
+    # v(t) = v∞ + (v0 − v∞) e^{−t/τ}, τ = m r2²/k, v∞ = −T_b r2 / k.
+    k, tb, v0 = 0.5, 0.01, 0.02
+    drive = _steady_drive()
+    params = rf.RattleParams(0.0, tb, 0.49, pair2.backlash)
+    model = rf.RattleModel.from_geometry(pair2).with_effects(fx.SpeedDependentDrag(coefficient=k))
+    sol = rf.simulate(model, params, drive, duration=3e-3, sample_rate=1e5, y0=[0.0, v0], **STEADY)
+    t, q = np.asarray(sol.time), np.asarray(sol.q)
+    assert np.max(np.abs(q)) < 0.4 * pair2.backlash  # no contact in the window
+    r2, m = pair2.pitch_radius_driven, float(model.mass)
+    tau, v_inf = m * r2**2 / k, -tb * r2 / k
+    expected = v_inf + (v0 - v_inf) * np.exp(-t / tau)
+    assert tau < 3e-3  # the window sees the relaxation
+    np.testing.assert_allclose(np.asarray(sol.velocity), expected, rtol=1e-6, atol=1e-9)
+
+
+def test_drive_ripple_forces_the_flight_at_its_order(pair2):
+    # In free flight: m v̇ = −T_b/r2 − m r1 α sin(2Ωt + φ), integrated in closed form.
+    alpha, phase, omega, tb, v0 = 2000.0, 0.3, 52.36, 0.01, 0.005
+    drive = _steady_drive(omega)
+    params = rf.RattleParams(0.0, tb, 0.49, pair2.backlash)
+    ripple = fx.DriveRipple(amplitude=alpha, phase=phase)
+    model = rf.RattleModel.from_geometry(pair2).with_effects(ripple)
+    sol = rf.simulate(model, params, drive, duration=4e-3, sample_rate=1e5, y0=[0.0, v0], **STEADY)
+    t, q = np.asarray(sol.time), np.asarray(sol.q)
+    assert np.max(np.abs(q)) < 0.4 * pair2.backlash
+    m, r1, r2 = float(model.mass), pair2.pitch_radius_driving, pair2.pitch_radius_driven
+    w = ripple.order * omega
+    expected = v0 - tb / (m * r2) * t + r1 * alpha / w * (np.cos(w * t + phase) - np.cos(phase))
+    np.testing.assert_allclose(np.asarray(sol.velocity), expected, rtol=0, atol=1e-9)
+
+
+def test_viscosity_drift_scales_the_squeeze_force_in_time(pair2):
+    # The vector field with the drift at time t is the plain one at viscosity μ e^{−rate t}.
+    drive = rf.Drive.commanded(52.36, 10.0, 16.0)
+    model = rf.RattleModel.from_geometry(pair2)
+    drifting = model.with_effects(fx.ViscosityDrift(rate=0.4))
+    y = jnp.asarray([0.2 * pair2.backlash, 0.03])  # approaching the coast flank
+    for t in (0.0, 0.7, 2.5):
+        mu = 0.49 * math.exp(-0.4 * t)
+        want = model.vector_field(t, y, (rf.RattleParams(1e-4, 0.02, mu, pair2.backlash), drive))
+        got = drifting.vector_field(
+            t, y, (rf.RattleParams(1e-4, 0.02, 0.49, pair2.backlash), drive)
+        )
+        np.testing.assert_allclose(np.asarray(got), np.asarray(want), rtol=1e-12)
+
+
+@pytest.mark.parametrize("name", sorted(fx.EFFECTS))
+def test_absent_effects_leave_the_vector_field_alone(pair2, name):
+    # At the lower end of its range an effect changes the acceleration, anywhere along a
+    # rattle trajectory, by less than 1e-3 of the drag's plus 1e-4 of the acceleration.
+    # (Trajectories cannot be compared: rattle is chaotic, and any change grows.)
+    drive = rf.Drive.commanded(52.36, 10.472, 16.0)
+    params = rf.RattleParams(0.085e-3, 0.02, 0.49, pair2.backlash)
+    model = rf.RattleModel.from_geometry(pair2)
+    sol = rf.simulate(
+        model, params, drive, duration=0.2, sample_rate=1e5, burn_in=0.0, rtol=1e-8, atol=1e-12
+    )
+    states = jnp.stack([sol.q, sol.velocity], axis=1)
+
+    def acceleration(m):
+        return np.asarray(
+            jax.vmap(lambda t, y: m.vector_field(t, y, (params, drive))[1])(sol.time, states)
+        )
+
+    plain = acceleration(model)
+    assert np.abs(plain).max() > 100 * 0.02 / pair2.pitch_radius_driven / float(model.mass)
+    drag = 0.02 / pair2.pitch_radius_driven / float(model.mass)
+    changed = acceleration(model.with_effects(fx.absent(name)))
+    assert np.all(np.abs(changed - plain) < 1e-3 * drag + 1e-4 * np.abs(plain))
+    # ... while halfway up its (log) range it does matter
+    cls = type(fx.absent(name))
+    some = cls(**{k: lo * (hi / lo) ** 0.5 for k, (_, lo, hi) in cls.ranges.items()})
+    assert np.any(np.abs(acceleration(model.with_effects(some)) - plain) > 1e-2 * drag)
+    for field, (unit, lo, hi) in cls.ranges.items():
+        assert float(getattr(fx.absent(name), field)) == lo < hi
+        assert unit
+
+
+def test_unknown_effect_names_the_known_ones():
+    with pytest.raises(KeyError, match="runout"):
+        fx.effect_class("eccentricity")
+
+
+def test_replace_sets_fields_and_keeps_the_rest():
+    e = fx.Runout(driving_amplitude=1e-6, driving_phase=0.5)
+    f = e.replace(driven_amplitude=2e-6)
+    assert float(f.driven_amplitude) == 2e-6
+    assert float(f.driving_amplitude) == 1e-6 and float(f.driving_phase) == 0.5
+    assert float(e.driven_amplitude) == 0.0  # immutable
