@@ -1,6 +1,7 @@
 """Benchmarks of rattlefit against the sharp scipy reference, at the shared recordings.
 
-Run ``python benchmarks/run.py [--quick] [--identify] [--posterior [STEPS]] [--json out.json]``.
+Run ``python benchmarks/run.py [--quick] [--identify] [--posterior [STEPS]] [--diagnose]
+[--json out.json]``.
 
 Every measured step runs in its own fresh ``multiprocessing`` "spawn" process, so that its peak
 resident memory (``ru_maxrss``) is its own; a baseline process that only imports rattlefit gives
@@ -53,6 +54,9 @@ AIM_FORWARD, TARGET_FORWARD = 50.0, 100.0  # × faster than the reference at mat
 AIM_IDENTIFY = 60.0  # s, one 3-s recording, compile included
 AIM_POSTERIOR_ESS, AIM_POSTERIOR_S = 400.0, 600.0  # ESS per parameter within this wall time
 POSTERIOR_STEPS = 150  # default chain length of the posterior step (16 walkers)
+AIM_DIAGNOSE = 900.0  # s, identify + every effect of rattlefit.effects, compile included
+# the shared file whose truth lists an unmodelled effect (run-out) and that has rattle
+DIAGNOSE_RECORDING = "pairII_boundary_65.4_20pct_16Hz_runout.h5"
 
 PARAM_NAMES = ("a", "T_b", "mu", "backlash", "h_min", "k_scale")
 
@@ -572,6 +576,43 @@ def step_posterior(args):
         }
 
 
+def step_diagnose(args):
+    """diagnose() of a 3-s recording with every effect: wall time (identify included)."""
+    try:
+        from rattlefit.diagnose import diagnose
+        from rattlefit.recording import read_recording
+
+        rec = read_recording(RECORDINGS / args["file"])
+        t0 = time.perf_counter()
+        diag = diagnose([rec], progress=lambda msg: _say(f"diagnose: {msg}"))
+        wall = time.perf_counter() - t0
+        return {
+            "ok": True,
+            "wall_s": wall,
+            "identify_s": diag.baseline.wall_time,
+            "chi2": diag.baseline.chi2,
+            "dof": diag.baseline.dof,
+            "verdict": None if diag.verdict is None else diag.verdict.name,
+            "effects": [
+                {
+                    "name": o.name,
+                    "chi2_without": o.chi2_without,
+                    "chi2_with": o.chi2_with,
+                    "p_value": o.p_value,
+                    "supported": o.supported,
+                    "wall_s": o.wall_time,
+                }
+                for o in diag.outcomes
+            ],
+        }
+    except Exception as exc:
+        return {
+            "ok": False,
+            "error": f"{type(exc).__name__}: {exc}",
+            "traceback": traceback.format_exc(limit=4),
+        }
+
+
 STEPS = {
     "baseline": step_baseline,
     "reference": step_reference,
@@ -581,6 +622,7 @@ STEPS = {
     "jacobian": step_jacobian,
     "identify": step_identify,
     "posterior": step_posterior,
+    "diagnose": step_diagnose,
 }
 
 
@@ -901,6 +943,31 @@ def report(res: dict) -> str:
         out.append(table(["parameter", "median [95 %]", "τ steps", "ESS", "ESS/s"], rows))
     out.append("")
 
+    # 3c diagnose
+    diag = res.get("diagnose")
+    out.append(f"3c. diagnose of {DIAGNOSE_RECORDING}: identify, then every effect")
+    if diag is None:
+        out.append("   not run (pass --diagnose)")
+    elif not diag["ok"]:
+        out.append(f"   ERROR: {diag['error']}")
+    else:
+        out.append(
+            f"   wall {diag['wall_s']:.0f} s (identify {diag['identify_s']:.0f} s); χ² without "
+            f"effects {diag['chi2']:.1f} on {diag['dof']} dof; verdict: {diag['verdict']}"
+        )
+        rows = [
+            [
+                e["name"],
+                f"{e['chi2_without']:.1f} → {e['chi2_with']:.1f}",
+                f"{e['p_value']:.2g}",
+                "yes" if e["supported"] else "no",
+                f"{e['wall_s']:.0f}",
+            ]
+            for e in diag["effects"]
+        ]
+        out.append(table(["effect", "χ² without → with", "p", "supported", "s"], rows))
+    out.append("")
+
     # 4 memory
     out.append("4. Peak memory (ru_maxrss of a fresh spawned process per step)")
     base = res["memory"]["baseline"]
@@ -962,7 +1029,18 @@ def report(res: dict) -> str:
                 verdict(needed, AIM_POSTERIOR_S, higher_is_better=False),
             ]
         )
-    rows.append(["diagnose", "not implemented yet", "—"])
+    if diag is None:
+        rows.append([f"diagnose < {AIM_DIAGNOSE:g} s", "not run", "—"])
+    elif not diag["ok"]:
+        rows.append(["diagnose", "error", "MISS (diagnose failed)"])
+    else:
+        rows.append(
+            [
+                f"diagnose < {AIM_DIAGNOSE:g} s",
+                f"{diag['wall_s']:.0f} s",
+                verdict(diag["wall_s"], AIM_DIAGNOSE, higher_is_better=False),
+            ]
+        )
     out.append(table(["aim", "measured", "verdict"], rows))
     if unmatched:
         out.append(
@@ -985,6 +1063,11 @@ def main(argv=None) -> int:
         default=None,
         metavar="STEPS",
         help=f"also time a posterior (identify + a chain of STEPS, default {POSTERIOR_STEPS})",
+    )
+    ap.add_argument(
+        "--diagnose",
+        action="store_true",
+        help=f"also time one diagnose() of {DIAGNOSE_RECORDING} (identify + every effect)",
     )
     ap.add_argument("--json", type=Path, help="write all results to this JSON file")
     args = ap.parse_args(argv)
@@ -1032,6 +1115,9 @@ def main(argv=None) -> int:
             "posterior", {"file": IDENTIFY_RECORDING, "steps": args.posterior}
         )
         res["memory"]["posterior"] = res["posterior"]["peak_mib"]
+    if args.diagnose:
+        res["diagnose"] = run_step("diagnose", {"file": DIAGNOSE_RECORDING})
+        res["memory"]["diagnose"] = res["diagnose"]["peak_mib"]
     res["wall_s"] = time.perf_counter() - t0
     res["load_after"] = os.getloadavg()
 

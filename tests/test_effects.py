@@ -200,7 +200,7 @@ def test_absent_effects_leave_the_vector_field_alone(pair2, name):
 
 
 def test_unknown_effect_names_the_known_ones():
-    with pytest.raises(KeyError, match="runout"):
+    with pytest.raises(rf.RattlefitError, match="runout"):
         fx.effect_class("eccentricity")
 
 

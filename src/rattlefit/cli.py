@@ -319,5 +319,55 @@ def sample(files, backend, steps, walkers, burn_in, seed, quick_fit, output, plo
             click.echo(f"wrote {path}", err=True)
 
 
+@main.command()
+@click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option(
+    "--effects",
+    default=None,
+    help="Comma-separated effects to try [default: all of rattlefit.effects.EFFECTS].",
+)
+@click.option("--seed", type=int, default=0, show_default=True, help="Seeds the fit and tries.")
+@click.option("--quick-fit", is_flag=True, help="Start from a FitOptions.quick() fit.")
+@click.option(
+    "--iterations",
+    type=click.IntRange(min=0),
+    default=3,
+    show_default=True,
+    help="Gauss–Newton iterations per effect.",
+)
+@_output_options("the diagnosis", "the band residuals with and without each effect")
+@click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
+@_clean_errors
+def diagnose(files, effects, seed, quick_fit, iterations, output, plot_dir, quiet):
+    """Where the model misses the recordings, which unmodelled effect explains it, and how
+    much of the misfit it removes (each effect fitted on top of an identification)."""
+    from .diagnose import DiagnoseOptions
+    from .diagnose import diagnose as run
+    from .effects import EFFECTS
+    from .fit import FitOptions
+    from .recording import read_recording
+    from .report import format_diagnosis, plot_diagnosis
+
+    names = tuple(EFFECTS) if effects is None else tuple(e.strip() for e in effects.split(","))
+    unknown = [n for n in names if n not in EFFECTS]
+    if unknown or not names:
+        raise click.BadParameter(
+            f"unknown effect(s) {', '.join(unknown) or '(none given)'}; known: "
+            f"{', '.join(EFFECTS)}",
+            param_hint="--effects",
+        )
+    recordings = [read_recording(f) for f in files]
+    fit_options = (FitOptions.quick if quick_fit else FitOptions)(seed=seed)
+    options = DiagnoseOptions(effects=names, fit=fit_options, iterations=iterations)
+    say = None if quiet else (lambda msg: click.echo(f"  {msg}", err=True))
+    diag = run(recordings, options, progress=say)
+    click.echo(format_diagnosis(diag))
+    if output is not None:
+        _write_json(output, diag.to_json())
+    if plot_dir is not None:
+        for path in plot_diagnosis(diag, plot_dir):
+            click.echo(f"wrote {path}", err=True)
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()

@@ -25,6 +25,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from .errors import RattlefitError
 from .model import Effect, RattleModel, RattleParams
 
 Scalar = Float[Array, ""]
@@ -204,6 +205,5 @@ def effect_class(name: str) -> type[Effect]:
     try:
         return EFFECTS[name]
     except KeyError:
-        raise KeyError(
-            f"unknown effect {name!r}; known effects: {', '.join(sorted(EFFECTS))}"
-        ) from None
+        known = ", ".join(sorted(EFFECTS))
+        raise RattlefitError(f"unknown effect {name!r}; known effects: {known}") from None

@@ -64,7 +64,7 @@ from scipy.stats import qmc
 from . import ensemble
 from .ensemble import chaotic_part, ensemble_mean, regime_weights, shrunk_correlation
 from .errors import RattlefitError
-from .model import DEFAULT_MIN_FILM, RattleModel, RattleParams
+from .model import DEFAULT_MIN_FILM, Effect, RattleModel, RattleParams
 from .parallel import map_rows
 from .recording import Recording
 from .rig import RigSetup, setup
@@ -412,6 +412,8 @@ class _Problem(eqx.Module):
     quantise: bool = eqx.field(static=True)
     regime_threshold: float | None = eqx.field(static=True)
     static: tuple = eqx.field(static=True)  # simulator options as sorted items
+    #: an extra effect whose fitted fields are specs named "<effect>.<field>" (diagnose)
+    effect: Effect | None = None
 
     @property
     def n_rec(self) -> int:
@@ -427,6 +429,17 @@ class _Problem(eqx.Module):
             jnp.stack([v[f"backlash[{k}]"] for k in range(self.n_rec)])[r],
             min_film=v["min_film"],
             stiffness_scale=v["stiffness_scale"],
+        )
+
+    def effect_at(self, z) -> Effect:
+        """:attr:`effect` with its fitted fields set from ``z``."""
+        prefix = self.effect.name + "."
+        return self.effect.replace(
+            **{
+                s.name[len(prefix) :]: s.value(z[i])
+                for i, s in enumerate(self.specs)
+                if s.name.startswith(prefix)
+            }
         )
 
     def rows(self, zs, y0=None):
@@ -466,6 +479,8 @@ class _Problem(eqx.Module):
             z, r, y0, d, phase = args
             model = jax.tree_util.tree_map(lambda x: x[r], self.models)
             drive = jax.tree_util.tree_map(lambda x: x[r], self.drives)
+            if self.effect is not None:
+                model = model.with_effects(self.effect_at(z))
             sol = _solve(model, self.params_for(z, r, d), drive, y0, **opts)
             if self.quantise:  # read through the rig's encoders (see FitOptions.quantisation)
                 motion = quantised_relative_motion(
@@ -1121,14 +1136,14 @@ def _profile_interval(profile: dict[float, tuple], threshold: float):
 def _polish_profile(
     residuals: Callable[[np.ndarray], np.ndarray],
     zs: np.ndarray,
-    fixed: Sequence[int],
+    fixed: Sequence[int | Sequence[int]],
     steps: np.ndarray,
     *,
     iterations: int = 2,
     damping: Sequence[float] = (0.03, 0.3, 3.0),
 ) -> np.ndarray:
-    """Re-optimise every coordinate but ``fixed[k]`` from each point ``zs[k]``: damped
-    Gauss–Newton (Levenberg–Marquardt) on finite differences.
+    """Re-optimise every coordinate but ``fixed[k]`` (an index or several) from each point
+    ``zs[k]``: damped Gauss–Newton (Levenberg–Marquardt) on finite differences.
 
     ``residuals`` maps points (N, P) to residual vectors (N, n), all evaluated in one batch
     (common random numbers, so that the values at different points are comparable);
@@ -1150,7 +1165,7 @@ def _polish_profile(
         for k in range(n):
             r0 = res[k, 0]
             jac = ((res[k, 1:] - r0) / h[k][:, None]).T  # (rows, P)
-            keep = np.arange(p) != fixed[k]
+            keep = ~np.isin(np.arange(p), fixed[k])
             j = jac[:, keep]
             jtj, g = j.T @ j, j.T @ r0
             for lam in damping:

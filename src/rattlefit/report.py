@@ -1,4 +1,5 @@
-"""Plots and tables of an identification: where a person would rather look than read."""
+"""Plots and tables of an identification, a posterior and a diagnosis: where a person would
+rather look than read."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ._util import atomic_write
+from .diagnose import MISSED_Z, Diagnosis
 from .fit import FitResult
 from .recording import Recording
 from .rig import setup
@@ -248,3 +250,98 @@ def plot_posterior(
             name = f"posterior_predictive_{k}_{Path(rec.path or 'recording').stem}.png"
             out.append(_save(fig, directory / name))
     return out
+
+
+def _si(value: float, unit: str) -> str:
+    mult, shown = DISPLAY.get(unit, (1.0, unit))
+    return f"{value * mult:.3g} {shown}".rstrip()
+
+
+def format_diagnosis(diag: Diagnosis) -> str:
+    """Where the model misses, each effect's χ² without and with it, and the verdict."""
+    lines = []
+    missed = diag.missed_bands
+    if missed:
+        lines.append(f"where the fitted model misses the data (|z| > {MISSED_Z:g}):")
+        for m in missed:
+            lo, hi = m["band_hz"]
+            more = "more" if m["z"] > 0 else "less"
+            lines.append(
+                f"  recording {m['recording']}: {lo:7.1f}–{hi:7.1f} Hz  z = {m['z']:+.1f} "
+                f"(the recording has {more} power)"
+            )
+    else:
+        lines.append(
+            f"no band misses by more than {MISSED_Z:g} σ (χ² = {diag.baseline.chi2:.1f} on "
+            f"{diag.baseline.dof} dof, p = {diag.baseline.p_value:.2g})"
+        )
+    rows = [("effect", "χ² without → with", "gap closed", "p", "supported", "fitted size")]
+    for o in diag.outcomes:
+        size = ", ".join(f"{k} {_si(v, o.units[k])}" for k, v in o.values.items())
+        rows.append(
+            (
+                o.name,
+                f"{o.chi2_without:.1f} → {o.chi2_with:.1f}",
+                f"{100 * o.gap_closed:.0f} %",
+                f"{o.p_value:.2g}",
+                "yes" if o.supported else "no",
+                size,
+            )
+        )
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    table = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
+    table.insert(1, "  ".join("-" * w for w in widths))
+    lines += ["", *table, ""]
+    best = diag.verdict
+    if best is None:
+        lines.append(
+            "verdict: no effect is supported — none lowers χ² by more than its Monte Carlo "
+            "noise with an F-test p below the significance level."
+        )
+    else:
+        lines.append(
+            f"verdict: {best.name} — χ² {best.chi2_without:.1f} → {best.chi2_with:.1f}, "
+            f"{100 * best.gap_closed:.0f} % of the excess misfit removed (p = {best.p_value:.2g})."
+        )
+    lines.append(f"seed {diag.seed}; {diag.wall_time:.0f} s")
+    return "\n".join(lines)
+
+
+def plot_diagnosis(diag: Diagnosis, directory: str | Path, *, top: int = 3) -> list[Path]:
+    """Each recording's standardised band residuals without extra effects and with each of
+    the ``top`` effects that remove most misfit, over the χ² of every effect tried."""
+    directory = Path(directory)
+    n_rec = diag.residuals.shape[0]
+    fig, axes = plt.subplots(n_rec + 1, 1, figsize=(9, 3.2 * (n_rec + 1)), squeeze=False)
+    centres = diag.band_centers
+    for k in range(n_rec):
+        ax = axes[k, 0]
+        ax.axhspan(-MISSED_Z, MISSED_Z, color="0.92", lw=0)
+        ax.semilogx(centres, diag.residuals[k], "ko-", ms=3, lw=0.8, label="fitted model")
+        for i, o in enumerate(diag.outcomes[:top]):
+            ax.semilogx(
+                centres, o.residuals[k], "s--", ms=3, lw=0.7, color=f"C{i}", label=f"+ {o.name}"
+            )
+        ax.axhline(0, color="0.4", lw=0.6)
+        ax.set_ylabel("(measured − model)/σ")
+        ax.set_xlabel("band centre (Hz)")
+        name = Path(diag.baseline.recordings[k]).name
+        ax.set_title(f"{name}: band residuals (shaded: within ±{MISSED_Z:g} σ)")
+        ax.legend(fontsize=8)
+    ax = axes[-1, 0]
+    names = [o.name for o in diag.outcomes]
+    x = np.arange(len(names))
+    ax.bar(x - 0.2, [o.chi2_without for o in diag.outcomes], 0.4, color="0.6", label="without")
+    ax.bar(
+        x + 0.2,
+        [o.chi2_with for o in diag.outcomes],
+        0.4,
+        color=["C2" if o.supported else "C0" for o in diag.outcomes],
+        label="with the effect (green: supported)",
+    )
+    ax.axhline(diag.baseline.dof, color="k", ls=":", lw=0.8, label="dof")
+    ax.set_xticks(x, names, rotation=20, ha="right")
+    ax.set_ylabel("χ²")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return [_save(fig, directory / "diagnosis.png")]

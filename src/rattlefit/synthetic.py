@@ -8,12 +8,13 @@ in the file's ``/truth`` group with the parameters.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
 from .drive import Drive
 from .geometry import GearGeometry
-from .model import PARAM_UNITS, RattleModel, RattleParams
+from .model import PARAM_UNITS, Effect, RattleModel, RattleParams
 from .recording import GearPairSpec, OilSpec, OperatingPoint, Recording
 from .simulate import encoder_counts, raise_if_failed, simulate
 
@@ -55,14 +56,18 @@ def synthesize(
     seed: int = 0,
     title: str = "",
     rtol: float = 1e-7,
+    effects: Sequence[Effect] = (),
 ) -> tuple[Recording, dict[str, float | int | str]]:
     """Simulate a recording and return it with its truth (SI values, seed, model notes).
 
     The drive defaults to the commanded law of ``operating``. The backlash written in the
     metadata is the geometry's (as measured); the simulation uses ``params.backlash``, so a
-    measurement error of the backlash can be imitated by making them differ.
+    measurement error of the backlash can be imitated by making them differ. ``effects``
+    (:mod:`rattlefit.effects`) are added to the model; the truth names them in
+    ``unmodelled_effects`` (comma-separated) and gives each fitted field as
+    ``"<effect>.<field>"``.
     """
-    model = RattleModel.from_geometry(geometry)
+    model = RattleModel.from_geometry(geometry).with_effects(*effects)
     if drive is None:
         drive = Drive.commanded(
             operating.drive_mean_speed_rad_s,
@@ -108,4 +113,9 @@ def synthesize(
         generator="rattlefit.synthetic",
         rtol=float(rtol),
     )
+    if effects:  # flat, so that they fit the /truth group's attributes
+        truth["unmodelled_effects"] = ",".join(e.name for e in effects)
+        truth.update(
+            {f"{e.name}.{k}": float(getattr(e, k)) for e in effects for k in type(e).ranges}
+        )
     return rec, truth

@@ -1,0 +1,354 @@
+"""Where the model misses a recording, which unmodelled effect explains it, and by how much.
+
+:func:`diagnose` starts from an identification (:func:`rattlefit.fit.identify`) and
+
+1. **locates the gap**: each band's standardised residual ``(measured − fitted)/σ`` at the
+   optimum, and the bands where it exceeds :data:`MISSED_Z`;
+2. **tries each effect** of :mod:`rattlefit.effects` on its own: the effect is added to the
+   model, its fields are screened over their ranges at the identification's optimum and
+   then fitted together with the free parameters ``a`` and ``drag_torque`` (damped
+   Gauss–Newton on finite differences, as the profile polish of :mod:`rattlefit.fit` does;
+   the nuisances stay at the optimum);
+3. **measures how far the gap shrinks**, out of sample: the χ² of the data rows (band
+   correlations included, the identification's noise model fixed) at the optimum without
+   the effect and at the fit with it, both from the same :attr:`DiagnoseOptions.n_final`
+   fresh realisations (common random numbers), none of which the fits saw. Fitting to the
+   fit's own few realisations finds "lucky" points whose χ² does not survive fresh ones
+   (measured: re-fitting every parameter moved the out-of-sample χ² without any effect
+   between 23 and 57 on one synthetic file), so only the effect and the free parameters
+   are fitted, and only fresh realisations judge. ``gap_closed`` is the share of the
+   excess misfit (χ² − dof) that the effect removes. An effect is *supported* when an
+   F-test of the χ² drop against the remaining misfit gives p < ``significance`` and the
+   drop exceeds the Monte Carlo noise of a difference of two χ²s; the verdict is the
+   supported effect with the largest drop.
+
+Every effect sits at the absent end of its range before the fit, so a χ² drop is evidence
+for that effect and the size it takes is an estimate of it. Effects can mimic each other
+(a drive ripple and tooth errors both add lines); the ranking says which one the data prefer,
+the drop how much it matters.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable, Sequence
+
+import jax.numpy as jnp
+import numpy as np
+from scipy import stats
+
+from .effects import EFFECTS, absent, effect_class
+from .errors import RattlefitError
+from .fit import (
+    Z_END,
+    FitOptions,
+    FitResult,
+    ParameterSpec,
+    _build,
+    _evaluate,
+    _polish_profile,
+    _release_states,
+    identify,
+)
+from .recording import Recording
+
+#: A band counts as missed when its standardised residual exceeds this (in σ).
+MISSED_Z = 3.0
+
+#: Where each effect field is screened before the fit: decades below the top of its range
+#: (each range's top is a generous size for a production gearbox, so the sizes worth finding
+#: lie within a few decades of it; the lower end means absent).
+SCREEN_DECADES = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class DiagnoseOptions:
+    """Options of :func:`diagnose`.
+
+    effects : names of the effects to try (:data:`rattlefit.effects.EFFECTS`).
+    fit : options of the identification that the diagnosis starts from (its seed seeds the
+        diagnosis too).
+    iterations : Gauss–Newton iterations per effect.
+    n_final : realisations behind each final χ² (default: the fit's covariance count).
+    significance : F-test level below which an effect counts as supported.
+    """
+
+    effects: tuple[str, ...] = tuple(EFFECTS)
+    fit: FitOptions = dataclasses.field(default_factory=FitOptions)
+    iterations: int = 3
+    n_final: int | None = None
+    significance: float = 0.01
+
+    def __post_init__(self):
+        for name in self.effects:
+            effect_class(name)  # raises with the list of known effects
+        if self.iterations < 0:
+            raise RattlefitError("DiagnoseOptions.iterations must be ≥ 0")
+
+
+@dataclasses.dataclass(frozen=True)
+class EffectOutcome:
+    """One effect tried on top of the identification.
+
+    values : the fitted fields (SI, see ``units``); at the lower end of a range the effect is
+        absent.
+    chi2_without, chi2_with : χ² of the data rows after re-fitting without and with it.
+    delta_chi2 : their difference (positive: the effect explains part of the misfit).
+    gap_closed : share of the excess misfit (χ² − dof) removed, in [0, 1] (0 when there is
+        no excess).
+    p_value : F-test of ``delta_chi2`` against the misfit that remains.
+    noise_threshold : Monte Carlo noise of a χ² difference (95 % one-sided).
+    supported : ``p_value`` < the significance and ``delta_chi2`` > ``noise_threshold``.
+    residuals : (R, B) standardised band residuals with the effect.
+    """
+
+    name: str
+    values: dict[str, float]
+    units: dict[str, str]
+    chi2_without: float
+    chi2_with: float
+    delta_chi2: float
+    gap_closed: float
+    p_value: float
+    noise_threshold: float
+    supported: bool
+    residuals: np.ndarray
+    wall_time: float
+
+    def as_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["parameters"] = {
+            k: {"value": v, "unit": self.units[k]} for k, v in d.pop("values").items()
+        }
+        d.pop("units")
+        d["residuals"] = np.asarray(self.residuals).tolist()
+        return d
+
+
+@dataclasses.dataclass(frozen=True)
+class Diagnosis:
+    """What :func:`diagnose` returns: the gap and the effects, best first."""
+
+    baseline: FitResult
+    residuals: np.ndarray  # (R, B) standardised residuals of the identification
+    band_centers: np.ndarray
+    band_edges: np.ndarray
+    outcomes: list[EffectOutcome]
+    seed: int
+    wall_time: float
+
+    @property
+    def missed_bands(self) -> list[dict]:
+        """Bands whose standardised residual exceeds :data:`MISSED_Z`: recording index,
+        band edges (Hz) and residual (positive: the recording has more power)."""
+        out = []
+        for k, row in enumerate(np.asarray(self.residuals)):
+            for b in np.flatnonzero(np.abs(row) > MISSED_Z):
+                lo, hi = self.band_edges[b], self.band_edges[b + 1]
+                out.append({"recording": k, "band_hz": [float(lo), float(hi)], "z": float(row[b])})
+        return out
+
+    @property
+    def verdict(self) -> EffectOutcome | None:
+        """The supported effect that removes most misfit, or None."""
+        supported = [o for o in self.outcomes if o.supported]
+        return supported[0] if supported else None
+
+    def to_json(self) -> dict:
+        v = self.verdict
+        return {
+            "verdict": None if v is None else v.name,
+            "baseline": {
+                "chi2": self.baseline.chi2,
+                "dof": self.baseline.dof,
+                "p_value": self.baseline.p_value,
+                "parameters": {k: p.as_dict() for k, p in self.baseline.parameters.items()},
+            },
+            "band_centers_hz": np.asarray(self.band_centers).tolist(),
+            "residuals": np.asarray(self.residuals).tolist(),
+            "missed_bands": self.missed_bands,
+            "effects": [o.as_dict() for o in self.outcomes],
+            "seed": self.seed,
+            "wall_time_s": self.wall_time,
+            "recordings": self.baseline.recordings,
+        }
+
+
+def _gap_closed(chi2_without: float, chi2_with: float, dof: int) -> float:
+    """Share of the excess misfit χ² − dof that the effect removes, in [0, 1]; 0 when there
+    is no excess (the model without the effect already explains the data)."""
+    excess = chi2_without - dof
+    if excess <= 0:
+        return 0.0
+    return float(np.clip((chi2_without - chi2_with) / excess, 0.0, 1.0))
+
+
+def effect_specs(name: str) -> tuple[ParameterSpec, ...]:
+    """The fitted fields of effect ``name`` as :class:`~rattlefit.fit.ParameterSpec`s named
+    ``"<effect>.<field>"`` (no prior: log-uniform over the range)."""
+    return tuple(
+        ParameterSpec(f"{name}.{field}", unit, lo, hi, fd_log_step=0.3)
+        for field, (unit, lo, hi) in effect_class(name).ranges.items()
+    )
+
+
+#: The film half-length's alternatives in the screening, as factors on its fitted value (0:
+#: the bottom of its range, dry flanks): a dissipative effect (flank friction, a
+#: speed-dependent drag) and the squeeze film can stand in for one another, and the fit
+#: without the effect will have given the film all the dissipation there is.
+FILM_FACTORS = (1.0, 0.1, 0.01, 0.0)
+
+
+def _screen_points(z_off: np.ndarray, specs: Sequence[ParameterSpec], problem) -> np.ndarray:
+    """Starting points: each effect field alone at :data:`SCREEN_DECADES` below the top of
+    its range (the others absent), and, with several fields, all of them together; each
+    with the film half-length at :data:`FILM_FACTORS` of its value at ``z_off``."""
+    first = len(problem.specs)
+    grid = [np.array([s.z_of(s.upper * 10.0**-k) for s in specs]) for k in SCREEN_DECADES]
+    fields = []
+    for j in range(len(specs)):
+        for g in grid:
+            z = z_off.copy()
+            z[first + j] = g[j]
+            fields.append(z)
+    if len(specs) > 1:
+        for g in grid:
+            z = z_off.copy()
+            z[first:] = g
+            fields.append(z)
+    i_film = [sp.name for sp in problem.specs].index("a")
+    film = problem.specs[i_film]
+    value = float(film.value(z_off[i_film]))
+    films = [film.z_of(max(value * f, film.lower)) if f else -Z_END for f in FILM_FACTORS]
+    points = []
+    for zf in films:
+        for z in fields:
+            z = z.copy()
+            z[i_film] = zf
+            points.append(z)
+    return np.stack(points)
+
+
+def diagnose(
+    recordings: Sequence[Recording],
+    options: DiagnoseOptions | None = None,
+    *,
+    baseline: FitResult | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> Diagnosis:
+    """Diagnose what the model misses in ``recordings`` (fitted jointly, as by identify).
+
+    ``baseline`` is an identification of the same recordings with ``options.fit`` (it is
+    run first when not given). ``progress`` receives one-line messages.
+    """
+    options = options or DiagnoseOptions()
+    t_start = time.perf_counter()
+
+    def say(msg: str) -> None:
+        if progress is not None:
+            progress(f"[{time.perf_counter() - t_start:5.0f} s] {msg}")
+
+    if baseline is None:
+        say("identifying the model without extra effects …")
+        baseline = identify(recordings, options.fit, progress=progress)
+    elif baseline.recordings != [str(r.path) for r in recordings]:
+        raise RattlefitError(
+            f"diagnose: the baseline fit is of {baseline.recordings}, not of "
+            f"{[str(r.path) for r in recordings]}"
+        )
+    fit_options = baseline.options
+    noise = baseline.noise
+    rng = np.random.default_rng(fit_options.seed)
+    problem, rigs = _build(recordings, fit_options, rng)  # the identification's realisations
+    problem = dataclasses.replace(problem, sigma=jnp.asarray(np.stack(baseline.sigma)))
+    data = np.asarray(problem.data)
+    residuals = (data - np.stack(baseline.fitted_features)) / np.stack(baseline.sigma)
+    n_final = options.n_final or fit_options.n_covariance_realisations
+    y0_final = _release_states(
+        problem, baseline.z, n_final, np.random.default_rng(fit_options.seed + 1)
+    )
+    dof = baseline.dof
+
+    def whitened(mean: np.ndarray) -> np.ndarray:
+        return noise.whiten @ ((data - mean) / np.asarray(problem.sigma)).reshape(-1)
+
+    outcomes = []
+    for n, name in enumerate(options.effects):
+        t0 = time.perf_counter()
+        specs = effect_specs(name)
+        prob = dataclasses.replace(problem, specs=problem.specs + specs, effect=absent(name))
+        p0, d = len(problem.specs), len(specs)
+        # the effect's fields are fitted with the free parameters; the nuisances stay put
+        frozen = [i for i, sp in enumerate(problem.specs) if sp.log_sd is not None]
+        z_off = np.concatenate([baseline.z, np.full(d, -Z_END)])
+
+        def residual_rows(zs, prob=prob):
+            mean = np.asarray(prob.mean_of(_evaluate(prob, zs)))
+            return np.stack(
+                [
+                    np.concatenate([whitened(mean[k]), np.asarray(prob.prior_rows(jnp.asarray(z)))])
+                    for k, z in enumerate(zs)
+                ]
+            )
+
+        say(f"effect {n + 1}/{len(options.effects)}: {name} — screening (compiling first) …")
+        starts = np.concatenate([z_off[None], _screen_points(z_off, specs, problem)])
+        cost = np.sum(residual_rows(starts) ** 2, axis=1)
+        best = starts[1 + int(np.argmin(cost[1:]))]
+        say(
+            f"  {name}: cost {cost[0]:.1f} without, {cost.min():.1f} at the best start; "
+            f"fitting it with a and T_b ({options.iterations} iterations) …"
+        )
+        steps = np.minimum(np.asarray(prob.fd_steps(jnp.asarray(best))), 1.0)[None]
+        if options.iterations:
+            best = _polish_profile(
+                residual_rows, best[None], [frozen], steps, iterations=options.iterations
+            )[0]
+        pair = np.stack([z_off, best])
+        per = _evaluate(prob, pair, y0_final)
+        mean = np.asarray(prob.mean_of(per))
+        chi2 = [float(np.sum(whitened(mean[k]) ** 2)) for k in range(2)]
+        delta = chi2[0] - chi2[1]
+        # Monte Carlo noise of each χ² from n_final realisations (cf. fit's profile threshold)
+        var = 4.0 * max(chi2[0], dof) / (n_final + 1) + 4.0 * max(chi2[1], dof) / (n_final + 1)
+        threshold = 1.645 * math.sqrt(var)
+        dof_with = max(dof - d, 1)
+        f_stat = (delta / d) / max(chi2[1] / dof_with, 1e-12)
+        p_value = float(stats.f.sf(f_stat, d, dof_with)) if delta > 0 else 1.0
+        values = {
+            s.name.split(".", 1)[1]: float(s.value(pair[1][p0 + j])) for j, s in enumerate(specs)
+        }
+        outcome = EffectOutcome(
+            name=name,
+            values=values,
+            units={k: u for k, (u, _, _) in effect_class(name).ranges.items()},
+            chi2_without=chi2[0],
+            chi2_with=chi2[1],
+            delta_chi2=delta,
+            gap_closed=_gap_closed(chi2[0], chi2[1], dof),
+            p_value=p_value,
+            noise_threshold=threshold,
+            supported=bool(p_value < options.significance and delta > threshold),
+            residuals=(data - mean[1]) / np.asarray(problem.sigma),
+            wall_time=time.perf_counter() - t0,
+        )
+        say(
+            f"  {name}: χ² {chi2[0]:.1f} → {chi2[1]:.1f} (p = {p_value:.2g}"
+            f"{', supported' if outcome.supported else ''}) in {outcome.wall_time:.0f} s"
+        )
+        outcomes.append(outcome)
+    outcomes.sort(key=lambda o: -o.delta_chi2)
+    bands = rigs[0].bands
+    wall = time.perf_counter() - t_start
+    say(f"done in {wall:.0f} s")
+    return Diagnosis(
+        baseline=baseline,
+        residuals=residuals,
+        band_centers=bands.centers,
+        band_edges=bands.edges,
+        outcomes=outcomes,
+        seed=fit_options.seed,
+        wall_time=wall,
+    )
