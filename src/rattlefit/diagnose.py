@@ -262,8 +262,10 @@ def diagnose(
 ) -> Diagnosis:
     """Diagnose what the model misses in ``recordings`` (fitted jointly, as by identify).
 
-    ``baseline`` is an identification of the same recordings with ``options.fit`` (it is
-    run first when not given). ``progress`` receives one-line messages.
+    ``baseline`` is an identification of the same recordings (run first with
+    ``options.fit`` when not given; when given, its own options and seed are used, so that
+    the diagnosis sees the realisations it was fitted with). ``progress`` receives one-line
+    messages. Results are reproducible: every realisation is seeded from the fit's seed.
     """
     options = options or DiagnoseOptions()
     t_start = time.perf_counter()
