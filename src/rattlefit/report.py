@@ -296,7 +296,7 @@ def format_diagnosis(diag: Diagnosis) -> str:
     if best is None:
         lines.append(
             "verdict: no effect is supported — none lowers χ² by more than its Monte Carlo "
-            "noise with an F-test p below the significance level."
+            "noise with an F-test p below the family-wise level over the effects tried."
         )
     else:
         lines.append(
