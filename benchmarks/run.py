@@ -16,6 +16,7 @@ gap, in units of their chaotic standard error (as ``tests/test_convergence.py`` 
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import multiprocessing as mp
@@ -497,6 +498,24 @@ def step_jacobian(args):
     return {"points": out, "compile_s": compile_s}
 
 
+def _guarded(step):
+    """A step that returns ``{"ok": False, "error", "traceback"}`` instead of raising, so
+    that one failing end-to-end step does not lose the rest of the run."""
+
+    @functools.wraps(step)
+    def run(args):
+        try:
+            return {"ok": True, **step(args)}
+        except Exception as exc:
+            return {
+                "ok": False,
+                "error": f"{type(exc).__name__}: {exc}",
+                "traceback": traceback.format_exc(limit=4),
+            }
+
+    return run
+
+
 def _timed_identify(file: str):
     """(recording, identify([recording], FitOptions()) result, wall time with compilation)."""
     from rattlefit.fit import FitOptions, identify
@@ -508,109 +527,88 @@ def _timed_identify(file: str):
     return rec, result, time.perf_counter() - t0
 
 
+@_guarded
 def step_identify(args):
     """One identification of a 3-s recording, compile included (guarded: fit.py is in flux)."""
-    try:
-        _, result, wall = _timed_identify(args["file"])
-        params = {}
-        for k, v in result.parameters.items():
-            params[k] = {
-                "estimate": v.estimate,
-                "lower": v.lower,
-                "upper": v.upper,
-                "unit": v.unit,
-                "identified": v.identified,
-            }
-        return {
-            "ok": True,
-            "wall_s": wall,
-            "success": bool(result.success),
-            "message": str(result.message),
-            "chi2": float(result.chi2),
-            "dof": int(result.dof),
-            "parameters": params,
+    _, result, wall = _timed_identify(args["file"])
+    params = {}
+    for k, v in result.parameters.items():
+        params[k] = {
+            "estimate": v.estimate,
+            "lower": v.lower,
+            "upper": v.upper,
+            "unit": v.unit,
+            "identified": v.identified,
         }
-    except Exception as exc:
-        return {
-            "ok": False,
-            "error": f"{type(exc).__name__}: {exc}",
-            "traceback": traceback.format_exc(limit=4),
-        }
+    return {
+        "wall_s": wall,
+        "success": bool(result.success),
+        "message": str(result.message),
+        "chi2": float(result.chi2),
+        "dof": int(result.dof),
+        "parameters": params,
+    }
 
 
+@_guarded
 def step_posterior(args):
     """identify() then sample() of the same 3-s recording: wall times, ESS, ESS per second."""
-    try:
-        from rattlefit.fit import FitOptions
-        from rattlefit.sample import SampleOptions, sample
+    from rattlefit.fit import FitOptions
+    from rattlefit.sample import SampleOptions, sample
 
-        rec, fit, t_fit = _timed_identify(args["file"])
-        t0 = time.perf_counter()
-        post = sample(
-            [rec],
-            fit,
-            SampleOptions(n_steps=args["steps"], seed=0),
-            progress=lambda msg: _say(f"sample: {msg}"),
-        )
-        t_sample = time.perf_counter() - t0
-        return {
-            "ok": True,
-            "fit_s": t_fit,
-            "sample_s": t_sample,
-            "walkers": int(post.chain.shape[1]),
-            "steps": int(post.chain.shape[0]),
-            "burn_in": post.burn_in,
-            "evaluations": post.n_evaluations,
-            "realisations": FitOptions().n_realisations,
-            "acceptance": float(post.acceptance.mean()),
-            "reliable": post.reliable,
-            "ess": dict(zip(post.names, map(float, post.ess), strict=True)),
-            "tau": dict(zip(post.names, map(float, post.autocorr_time), strict=True)),
-            "intervals": post.intervals(),
-        }
-    except Exception as exc:
-        return {
-            "ok": False,
-            "error": f"{type(exc).__name__}: {exc}",
-            "traceback": traceback.format_exc(limit=4),
-        }
+    rec, fit, t_fit = _timed_identify(args["file"])
+    t0 = time.perf_counter()
+    post = sample(
+        [rec],
+        fit,
+        SampleOptions(n_steps=args["steps"], seed=0),
+        progress=lambda msg: _say(f"sample: {msg}"),
+    )
+    t_sample = time.perf_counter() - t0
+    return {
+        "fit_s": t_fit,
+        "sample_s": t_sample,
+        "walkers": int(post.chain.shape[1]),
+        "steps": int(post.chain.shape[0]),
+        "burn_in": post.burn_in,
+        "evaluations": post.n_evaluations,
+        "realisations": FitOptions().n_realisations,
+        "acceptance": float(post.acceptance.mean()),
+        "reliable": post.reliable,
+        "ess": dict(zip(post.names, map(float, post.ess), strict=True)),
+        "tau": dict(zip(post.names, map(float, post.autocorr_time), strict=True)),
+        "intervals": post.intervals(),
+    }
 
 
+@_guarded
 def step_diagnose(args):
     """diagnose() of a 3-s recording with every effect: wall time (identify included)."""
-    try:
-        from rattlefit.diagnose import diagnose
-        from rattlefit.recording import read_recording
+    from rattlefit.diagnose import diagnose
+    from rattlefit.recording import read_recording
 
-        rec = read_recording(RECORDINGS / args["file"])
-        t0 = time.perf_counter()
-        diag = diagnose([rec], progress=lambda msg: _say(f"diagnose: {msg}"))
-        wall = time.perf_counter() - t0
-        return {
-            "ok": True,
-            "wall_s": wall,
-            "identify_s": diag.baseline.wall_time,
-            "chi2": diag.baseline.chi2,
-            "dof": diag.baseline.dof,
-            "verdict": None if diag.verdict is None else diag.verdict.name,
-            "effects": [
-                {
-                    "name": o.name,
-                    "chi2_without": o.chi2_without,
-                    "chi2_with": o.chi2_with,
-                    "p_value": o.p_value,
-                    "supported": o.supported,
-                    "wall_s": o.wall_time,
-                }
-                for o in diag.outcomes
-            ],
-        }
-    except Exception as exc:
-        return {
-            "ok": False,
-            "error": f"{type(exc).__name__}: {exc}",
-            "traceback": traceback.format_exc(limit=4),
-        }
+    rec = read_recording(RECORDINGS / args["file"])
+    t0 = time.perf_counter()
+    diag = diagnose([rec], progress=lambda msg: _say(f"diagnose: {msg}"))
+    wall = time.perf_counter() - t0
+    return {
+        "wall_s": wall,
+        "identify_s": diag.baseline.wall_time,
+        "chi2": diag.baseline.chi2,
+        "dof": diag.baseline.dof,
+        "verdict": None if diag.verdict is None else diag.verdict.name,
+        "effects": [
+            {
+                "name": o.name,
+                "chi2_without": o.chi2_without,
+                "chi2_with": o.chi2_with,
+                "p_value": o.p_value,
+                "supported": o.supported,
+                "wall_s": o.wall_time,
+            }
+            for o in diag.outcomes
+        ],
+    }
 
 
 STEPS = {

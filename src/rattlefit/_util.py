@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -49,3 +50,14 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None]) ->
         tmp_path.unlink(missing_ok=True)
         raise
     return path
+
+
+def stamped(progress: Callable[[str], None] | None, t_start: float) -> Callable[[str], None]:
+    """A progress callback that prefixes each message with the seconds since ``t_start``
+    (``time.perf_counter()``); a no-op when ``progress`` is None."""
+
+    def say(msg: str) -> None:
+        if progress is not None:
+            progress(f"[{time.perf_counter() - t_start:5.0f} s] {msg}")
+
+    return say

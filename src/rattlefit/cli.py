@@ -42,6 +42,21 @@ def _write_json(path: Path, doc: dict) -> None:
     click.echo(f"wrote {path}", err=True)
 
 
+def _progress(quiet: bool):
+    """The progress callback of a fitting command: indented lines on stderr, or none."""
+    return None if quiet else (lambda msg: click.echo(f"  {msg}", err=True))
+
+
+def _emit(text: str, doc: dict, output: Path | None, plot_dir: Path | None, plot) -> None:
+    """Print ``text``; write ``doc`` to ``output`` and ``plot(plot_dir)``'s PNGs when asked."""
+    click.echo(text)
+    if output is not None:
+        _write_json(output, doc)
+    if plot_dir is not None:
+        for path in plot(plot_dir):
+            click.echo(f"wrote {path}", err=True)
+
+
 def _output_options(what: str, plots: str):
     """The ``-o/--output`` (JSON) and ``--plot DIR`` (PNG) options of a fitting command."""
 
@@ -263,14 +278,14 @@ def identify(files, output, plot_dir, seed, realisations, starts, drive, quick, 
     given = {"n_realisations": realisations, "n_starts": starts}
     make = FitOptions.quick if quick else FitOptions
     options = make(seed=seed, drive=drive, **{k: v for k, v in given.items() if v})
-    say = None if quiet else (lambda msg: click.echo(f"  {msg}", err=True))
-    result = run(recordings, options, progress=say)
-    click.echo(format_table(result))
-    if output is not None:
-        _write_json(output, result.to_json())
-    if plot_dir is not None:
-        for path in plot_fit(result, recordings, plot_dir):
-            click.echo(f"wrote {path}", err=True)
+    result = run(recordings, options, progress=_progress(quiet))
+    _emit(
+        format_table(result),
+        result.to_json(),
+        output,
+        plot_dir,
+        lambda d: plot_fit(result, recordings, d),
+    )
 
 
 @main.command()
@@ -309,14 +324,14 @@ def sample(files, backend, steps, walkers, burn_in, seed, quick_fit, output, plo
     options = SampleOptions(
         n_walkers=walkers, n_steps=steps, burn_in=burn_in, seed=seed, fit=fit_options
     )
-    say = None if quiet else (lambda msg: click.echo(f"  {msg}", err=True))
-    post = run(recordings, None, options, backend=backend, progress=say)
-    click.echo(format_posterior(post))
-    if output is not None:
-        _write_json(output, post.to_json())
-    if plot_dir is not None:
-        for path in plot_posterior(post, plot_dir, recordings):
-            click.echo(f"wrote {path}", err=True)
+    post = run(recordings, None, options, backend=backend, progress=_progress(quiet))
+    _emit(
+        format_posterior(post),
+        post.to_json(),
+        output,
+        plot_dir,
+        lambda d: plot_posterior(post, d, recordings),
+    )
 
 
 @main.command()
@@ -359,14 +374,10 @@ def diagnose(files, effects, seed, quick_fit, iterations, output, plot_dir, quie
     recordings = [read_recording(f) for f in files]
     fit_options = (FitOptions.quick if quick_fit else FitOptions)(seed=seed)
     options = DiagnoseOptions(effects=names, fit=fit_options, iterations=iterations)
-    say = None if quiet else (lambda msg: click.echo(f"  {msg}", err=True))
-    diag = run(recordings, options, progress=say)
-    click.echo(format_diagnosis(diag))
-    if output is not None:
-        _write_json(output, diag.to_json())
-    if plot_dir is not None:
-        for path in plot_diagnosis(diag, plot_dir):
-            click.echo(f"wrote {path}", err=True)
+    diag = run(recordings, options, progress=_progress(quiet))
+    _emit(
+        format_diagnosis(diag), diag.to_json(), output, plot_dir, lambda d: plot_diagnosis(diag, d)
+    )
 
 
 if __name__ == "__main__":  # pragma: no cover

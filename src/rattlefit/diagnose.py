@@ -48,6 +48,7 @@ import jax.numpy as jnp
 import numpy as np
 from scipy import stats
 
+from ._util import stamped
 from .effects import EFFECTS, absent, effect_class
 from .errors import RattlefitError
 from .fit import (
@@ -276,9 +277,7 @@ def diagnose(
     options = options or DiagnoseOptions()
     t_start = time.perf_counter()
 
-    def say(msg: str) -> None:
-        if progress is not None:
-            progress(f"[{time.perf_counter() - t_start:5.0f} s] {msg}")
+    say = stamped(progress, t_start)  # progress, stamped with the time since the start
 
     if baseline is None:
         say("identifying the model without extra effects …")

@@ -62,6 +62,7 @@ from scipy import stats
 from scipy.stats import qmc
 
 from . import ensemble
+from ._util import stamped
 from .ensemble import chaotic_part, ensemble_mean, regime_weights, shrunk_correlation
 from .errors import RattlefitError
 from .model import DEFAULT_MIN_FILM, Effect, RattleModel, RattleParams
@@ -805,9 +806,7 @@ def identify(
     options = options or FitOptions()
     t_start = time.perf_counter()
 
-    def say(msg: str) -> None:  # progress, stamped with the time since the start
-        if progress is not None:
-            progress(f"[{time.perf_counter() - t_start:5.0f} s] {msg}")
+    say = stamped(progress, t_start)  # progress, stamped with the time since the start
 
     rng = np.random.default_rng(options.seed)
     problem, rigs = _build(recordings, options, rng)
