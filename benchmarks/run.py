@@ -47,7 +47,7 @@ Z_MATCH = 2.0  # rms z below which two ensembles' mean features agree
 # tenth of the contact width, 0.01 at 3 %), not from the solver tolerance.
 Z_FLOOR = 0.03
 BATCH_SIZES = (8, 32)
-BATCH_MODES = ("map", "vmap")
+BATCH_MODES = ("map", "vmap", "lockstep")
 FIT_RTOL = 1e-6  # simulate()'s default rtol, at which the Jacobians are costed
 P_FD = 6  # fitted parameters (a, T_b, μ, backlash, h_min, stiffness scale)
 FD_LOG_STEP = 0.15  # ParameterSpec.fd_log_step
@@ -369,12 +369,13 @@ def _forward_features(s, params, y0, opts):
 
 
 def _fd_features(s, params, y0, opts):
-    """Features of a batch of members (one simulate_batch call, batch='map'), and the batch."""
+    """Features of a batch of members (one simulate_batch call, batch='lockstep', as the fit
+    simulates), and the batch."""
     from rattlefit.simulate import simulate_batch
     from rattlefit.spectra import spectral_features
 
     sol = simulate_batch(
-        s.model, params, s.drive, y0=y0, batch="map", sample_rate=s.sample_rate, **opts
+        s.model, params, s.drive, y0=y0, batch="lockstep", sample_rate=s.sample_rate, **opts
     )
     return spectral_features(sol.relative_motion, s.bands, noise_floor=s.noise_floor), sol
 
@@ -883,7 +884,7 @@ def report(res: dict) -> str:
     out.append(
         "compile: "
         + ", ".join(f"{k} {v:.2f} s" for k, v in jac["compile_s"].items())
-        + f"; FD = (2P+1)·M = (2·{P_FD}+1)·{M} simulations in one simulate_batch(batch='map') "
+        + f"; FD = (2P+1)·M = (2·{P_FD}+1)·{M} simulations in one simulate_batch(batch='lockstep') "
         f"call, central differences at ±{FD_LOG_STEP:g} in log p; jacfwd = "
         "jax.jit(jax.jacfwd(features ∘ simulate)) over 6 parameters; 'fwd in jit' = the same "
         "forward function under that outer jax.jit (model, drive, y0 traced)"

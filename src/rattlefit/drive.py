@@ -117,6 +117,25 @@ class Drive(eqx.Module):
         w, ph = self._phases(t)
         return -jnp.sum(w**2 * (self.cos_coeffs * jnp.cos(ph) + self.sin_coeffs * jnp.sin(ph)))
 
+    def angle_and_acceleration(self, t: ArrayLike) -> tuple[Array, Array]:
+        """θ1(t) (rad) and θ̈1(t) (rad/s²) together (scalar t), as the vector field needs them.
+
+        The same series as :meth:`angle` and :meth:`acceleration`, with the harmonics'
+        cosines and sines from one cosine and sine by the angle-addition recurrence: two
+        transcendental calls per evaluation instead of one pair per harmonic and quantity.
+        """
+        w = 2 * jnp.pi * self.frequency
+        cos1, sin1 = jnp.cos(w * t), jnp.sin(w * t)
+        cos_k, sin_k = cos1, sin1
+        angle = self.offset + self.mean_speed * t
+        acc = jnp.zeros_like(angle)
+        for k in range(1, self.cos_coeffs.shape[-1] + 1):
+            term = self.cos_coeffs[..., k - 1] * cos_k + self.sin_coeffs[..., k - 1] * sin_k
+            angle = angle + term
+            acc = acc - (w * k) ** 2 * term
+            cos_k, sin_k = cos_k * cos1 - sin_k * sin1, sin_k * cos1 + cos_k * sin1
+        return angle, acc
+
     def max_acceleration(self) -> float:
         """max |θ̈1| over one period, rad/s² (sampled finely; concrete drives only)."""
         t = np.linspace(0.0, 1.0 / float(self.frequency), 2049)

@@ -66,10 +66,10 @@ from ._util import stamped
 from .ensemble import chaotic_part, ensemble_mean, regime_weights, shrunk_correlation
 from .errors import RattlefitError
 from .model import DEFAULT_MIN_FILM, Effect, RattleModel, RattleParams
-from .parallel import map_rows
+from .parallel import map_blocks
 from .recording import Recording
 from .rig import RigSetup, setup
-from .simulate import _solve, _static_options, quantised_relative_motion
+from .simulate import _static_options, quantised_relative_motion, solve_rows
 from .spectra import spectral_features
 
 Z95 = 1.959963984540054
@@ -473,16 +473,22 @@ class _Problem(eqx.Module):
         return d[:, np.any(d != 0, axis=0)]
 
     def features_of_rows(self, rows):
-        """Features of every row (see :meth:`rows`): (N, B)."""
+        """Features of every row (see :meth:`rows`): (N, B).
+
+        Each device's share of the rows is solved in one lockstep batch
+        (:func:`~rattlefit.simulate.solve_rows`); every row has its own recording's model and
+        drive, its parameters and its release state.
+        """
         opts = dict(self.static)
 
-        def one(args):
-            z, r, y0, d, phase = args
+        def setup(z, r, d):
             model = jax.tree_util.tree_map(lambda x: x[r], self.models)
             drive = jax.tree_util.tree_map(lambda x: x[r], self.drives)
             if self.effect is not None:
                 model = model.with_effects(self.effect_at(z))
-            sol = _solve(model, self.params_for(z, r, d), drive, y0, **opts)
+            return model, self.params_for(z, r, d), drive
+
+        def measure(sol, model, r, phase):
             if self.quantise:  # read through the rig's encoders (see FitOptions.quantisation)
                 motion = quantised_relative_motion(
                     sol, model, counts_per_rev=self.counts_per_rev[r], phase=phase
@@ -493,7 +499,13 @@ class _Problem(eqx.Module):
             # a failed solve gives a far-off, finite feature vector: the step is rejected
             return jnp.where(sol.result == 0, f, -30.0)
 
-        return map_rows(one, rows)
+        def block(rows):
+            z, r, y0, d, phase = rows
+            models, params, drives = jax.vmap(setup)(z, r, d)
+            sol = solve_rows(models, params, drives, y0, **opts)
+            return jax.vmap(measure)(sol, models, r, phase)
+
+        return map_blocks(block, rows)
 
     def features(self, zs):
         """Features of every realisation for each row of ``zs`` (K, P): (K, R, M, B)."""
@@ -547,8 +559,9 @@ def _features_chunk(problem: _Problem, rows):
 
 
 def _chunk_size() -> int:
-    """Rows per compiled call: a fixed size, so one program serves every evaluation."""
-    return max(8, 4 * len(jax.local_devices()))
+    """Rows per compiled call: a fixed size, so one program serves every evaluation (8 per
+    device: a lockstep batch costs about as much per member from 8 members up)."""
+    return 8 * len(jax.local_devices())
 
 
 def _evaluate(problem: _Problem, zs, y0=None) -> np.ndarray:

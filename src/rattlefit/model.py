@@ -281,20 +281,23 @@ class RattleModel(eqx.Module):
             self.axial_width,
         )
 
-    def forces(self, t, q, v, params: RattleParams, drive: Drive):
-        """Contact and squeeze forces on the pitch circle, N, as (F_mesh, F_squeeze)."""
+    def forces(self, t, q, v, params: RattleParams, drive: Drive, *, theta1=None):
+        """Contact and squeeze forces on the pitch circle, N, as (F_mesh, F_squeeze).
+
+        ``theta1`` is θ1(t) if already known (else ``drive.angle(t)``). Only the film ahead
+        of the motion resists it, so one squeeze coefficient is evaluated: that of the gap
+        ``h₊`` while ``v > 0`` and ``h₋`` otherwise (at ``v = 0`` the force is zero either way).
+        """
         w = self.smoothing.contact_width
-        theta1 = drive.angle(t)
+        if theta1 is None:
+            theta1 = drive.angle(t)
         qe = q - sum((e.gap_error(t, theta1, self, params, drive) for e in self.effects), 0.0)
         c = 0.5 * params.backlash
         h_plus, h_minus = c - qe, c + qe  # gaps to the coast and drive flanks
         k = self.mesh_stiffness(theta1, params.stiffness_scale)
         f_mesh = -k * w * (jax.nn.softplus(-h_plus / w) - jax.nn.softplus(-h_minus / w))
-        apart_plus, apart_minus = jax.nn.sigmoid(h_plus / w), jax.nn.sigmoid(h_minus / w)
-        f_squeeze = (
-            -self.squeeze(h_plus, params) * jnp.maximum(v, 0.0) * apart_plus
-            + self.squeeze(h_minus, params) * jnp.maximum(-v, 0.0) * apart_minus
-        )
+        ahead = jnp.where(v > 0, h_plus, h_minus)  # the gap the motion closes
+        f_squeeze = -self.squeeze(ahead, params) * v * jax.nn.sigmoid(ahead / w)
         return f_mesh, f_squeeze
 
     def vector_field(self, t, y, args):
@@ -303,10 +306,11 @@ class RattleModel(eqx.Module):
         for e in self.effects:
             params = e.adjust(t, params, self, drive)
         q, v = y[0], y[1]
-        f_mesh, f_squeeze = self.forces(t, q, v, params, drive)
+        theta1, acc1 = drive.angle_and_acceleration(t)
+        f_mesh, f_squeeze = self.forces(t, q, v, params, drive, theta1=theta1)
         f_extra = sum((e.force(t, q, v, f_mesh, self, params, drive) for e in self.effects), 0.0)
         drag = params.drag_torque / self.r2
-        acc = (f_mesh + f_squeeze + f_extra - drag) / self.mass - self.r1 * drive.acceleration(t)
+        acc = (f_mesh + f_squeeze + f_extra - drag) / self.mass - self.r1 * acc1
         return jnp.stack([v, acc])
 
     # -- closed-form facts ---------------------------------------------------------------

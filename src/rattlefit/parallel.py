@@ -7,8 +7,12 @@ cores idle. :func:`use_cpu_cores` asks JAX for one CPU device per core — it mu
 executes anything, which is why the command-line interface calls it first thing — and
 :func:`map_rows` then splits a batch evenly over the devices with ``shard_map``; each device
 runs its share with ``jax.lax.map``. With one device :func:`map_rows` is exactly
-``jax.lax.map``, so results never depend on whether the cores were enabled (measured: the
-features agree to the last bit).
+``jax.lax.map``, so its results never depend on whether the cores were enabled (measured: the
+features agree to the last bit). :func:`map_blocks` gives each device its whole share at once,
+for the lockstep integrator of :mod:`rattlefit.integrate`; a vectorised transcendental may
+round differently in another batch layout, and rattle's chaos grows that into another
+realisation, so results computed that way (every fit) are reproducible for a given seed and
+device count.
 
 On a GPU, JAX already lists every GPU, and :func:`map_rows` shards over them unchanged.
 """
@@ -59,11 +63,21 @@ def map_rows(fn: Callable, rows):
     Rows are padded (repeating the last) to a multiple of the device count and the padding is
     dropped from the result, so any batch size works.
     """
+    return map_blocks(lambda block: jax.lax.map(fn, block), rows)
+
+
+def map_blocks(fn: Callable, rows):
+    """``fn(rows)`` for a batched ``fn``, with the rows split evenly over all local devices.
+
+    Each device applies ``fn`` to its whole share at once (for a vectorised computation such
+    as :func:`rattlefit.integrate.solve_lockstep`); the rows are padded and unpadded as in
+    :func:`map_rows`, whose one-row-at-a-time loop is the special case.
+    """
     devices = jax.local_devices()
     n_dev = len(devices)
     size = jax.tree_util.tree_leaves(rows)[0].shape[0]
     if n_dev == 1 or size == 1:
-        return jax.lax.map(fn, rows)
+        return fn(rows)
     n_dev = min(n_dev, size)
     padded = -(-size // n_dev) * n_dev
 
@@ -74,7 +88,7 @@ def map_rows(fn: Callable, rows):
     mesh = Mesh(np.asarray(devices[:n_dev]), ("rows",))
     spec = PartitionSpec("rows")
     sharded = jax.shard_map(
-        lambda r: jax.lax.map(fn, r),
+        fn,
         mesh=mesh,
         in_specs=(spec,),
         out_specs=spec,
