@@ -18,8 +18,10 @@ from rattlefit.diagnose import (
     FREE_FACTORS,
     SCREEN_DECADES,
     DiagnoseOptions,
+    _free_alternatives,
     _gap_closed,
     _screen_points,
+    baseline_warnings,
     diagnose,
     effect_specs,
 )
@@ -127,6 +129,30 @@ def test_screen_points_try_each_field_alone_and_together_with_less_film_and_drag
     np.testing.assert_allclose(drags, [drag0 * f for _, f in FREE_FACTORS], rtol=1e-4)
     rest = pts[:, 2:p0]  # the nuisances are never moved
     np.testing.assert_array_equal(rest, np.broadcast_to(z_off[2:p0], rest.shape))
+
+
+def test_baseline_refit_starts_from_the_identification_and_the_free_alternatives():
+    rec, _ = _dry_pair2([])
+    problem, _ = _build([rec], FitOptions.quick(), np.random.default_rng(0))
+    z = np.linspace(-0.5, 0.5, len(problem.specs))
+    alts = _free_alternatives(z, problem)
+    assert alts.shape == (len(FREE_FACTORS), len(z))
+    np.testing.assert_allclose(alts[0], z)  # FREE_FACTORS[0] is the identification itself
+    film, drag = problem.specs[0], problem.specs[1]
+    for row, (f_film, f_drag) in zip(alts, FREE_FACTORS, strict=True):
+        expect = max(float(film.value(z[0])) * f_film, film.lower) if f_film else film.lower
+        assert float(film.value(row[0])) == pytest.approx(expect, rel=0.01)  # ends: ≈ lower
+        assert float(drag.value(row[1])) == pytest.approx(float(drag.value(z[1])) * f_drag)
+        np.testing.assert_array_equal(row[2:], z[2:])  # the nuisances stay
+
+
+def test_baseline_warnings_flag_an_unconverged_or_far_identification():
+    assert baseline_warnings(True, 100.0, 60.0) == []
+    (w,) = baseline_warnings(False, 100.0, 90.0)
+    assert "step limit" in w and "--quick-fit" in w
+    (w,) = baseline_warnings(True, 1440.0, 300.0)
+    assert "1440.0" in w and "300.0" in w
+    assert len(baseline_warnings(False, 1440.0, 300.0)) == 2
 
 
 def test_gap_closed_is_the_share_of_the_excess_misfit():

@@ -303,6 +303,7 @@ def format_diagnosis(diag: Diagnosis) -> str:
             f"verdict: {best.name} — χ² {best.chi2_without:.1f} → {best.chi2_with:.1f}, "
             f"{100 * best.gap_closed:.0f} % of the excess misfit removed (p = {best.p_value:.2g})."
         )
+    lines += [f"warning: {w}" for w in diag.warnings]
     lines.append(f"seed {diag.seed}; {diag.wall_time:.0f} s")
     return "\n".join(lines)
 
