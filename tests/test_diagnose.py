@@ -77,6 +77,10 @@ def test_diagnose_names_withheld_flank_friction_and_sizes_it(tmp_path):
         assert not outcomes[name]["supported"], outcomes[name]
         assert outcomes[name]["delta_chi2"] < friction["delta_chi2"]
     assert doc["effects"][0]["name"] == "flank_friction"  # best first
+    # an identification that stopped at its step limit is said to have done so, on screen too
+    stopped = any("step limit" in w for w in doc["warnings"])
+    assert stopped == (not doc["baseline"]["converged"]), doc["warnings"]
+    assert all(f"warning: {w}" in result.output for w in doc["warnings"])
     assert (plots / "diagnosis.png").is_file()
     assert not list(tmp_path.glob("**/*.tmp"))
 

@@ -185,6 +185,7 @@ class Diagnosis:
                 "chi2": self.baseline.chi2,
                 "dof": self.baseline.dof,
                 "p_value": self.baseline.p_value,
+                "converged": self.baseline.success,
                 "parameters": {k: p.as_dict() for k, p in self.baseline.parameters.items()},
             },
             "band_centers_hz": np.asarray(self.band_centers).tolist(),
