@@ -145,7 +145,8 @@ def solve_rows(
         max_steps=max_steps,
     )
     ts = jnp.arange(n_samples) / sample_rate
-    theta1 = jax.vmap(lambda d: jax.vmap(d.angle)(ts))(drives)
+    # the harmonics by recurrence (two transcendentals a sample, not two per harmonic)
+    theta1 = jax.vmap(lambda d: jax.vmap(lambda t: d.angle_and_acceleration(t)[0])(ts))(drives)
     q, v = ys[..., 0], ys[..., 1]
     return Solution(
         jnp.broadcast_to(ts, q.shape), q, v, -q / models.r1[:, None], theta1, result, steps
