@@ -336,8 +336,9 @@ def test_polish_profile_reaches_the_profile_minimum():
     assert cost == pytest.approx((starts[:, 0] - 0.3) ** 2, abs=5e-3)
     assert np.array_equal(ends[:, 0], starts[:, 0])  # the profiled coordinate stays fixed
     assert np.allclose(ends[2], starts[2])  # already at the profile minimum: not moved
-    # batched contract: per iteration one call with the difference points, one with the trials
-    assert calls == [(12, 3), (9, 3), (12, 3), (9, 3)]
+    # batched contract: per iteration one call with each point and its differences along the
+    # free coordinates only (3 × (1 + 2)), one with the trials (3 × 3 damping values)
+    assert calls == [(9, 3), (9, 3), (9, 3), (9, 3)]
     # the scan's guess (the others unchanged) overstates the profile cost by orders of magnitude
     assert np.sum(_valley(starts[:1]) ** 2) > 100 * cost[0]
 

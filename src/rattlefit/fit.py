@@ -172,7 +172,12 @@ class FitOptions:
         outside each free parameter's interval (:func:`_polish_profile`); 0 keeps the scan's
         two guesses. Each round costs about 30 % of a fit with four such values.
     seed : seeds the release positions and the starts (reported in the result).
-    rtol : simulator tolerance.
+    rtol : simulator tolerance (atol is 1e-3 of it, in m and m/s). 1e-4 matches the band
+        features of the sharp scipy reference at six of the seven shared operating points
+        (benchmarks/README) for 0.65× the steps, but measured in session 11 it moved two
+        seeded CI checks off their truth (the mild synthetic file's ``a`` lower end 90 µm
+        against 85 µm; the withheld-friction diagnosis lost its verdict), so 1e-5 stays the
+        default until a coverage study says otherwise.
     drive : ``"measured"`` (fit to the primary encoder) or ``"commanded"``.
     quantisation : how the simulations are measured. ``"encoders"`` (default) reads each
         simulation through the two encoders as the rig does (each realisation with its own
@@ -951,11 +956,12 @@ def identify(
     say(f"χ² = {chi2:.1f} on {dof} dof (band correlations included)")
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     corr = cov / np.outer(np.maximum(sd, 1e-300), np.maximum(sd, 1e-300))
-    # each rival optimum widens the intervals to cover its own 95 % interval
+    # each rival optimum widens the intervals to cover its own 95 % interval, taken to be as
+    # wide as the optimum's (a Laplace stage of its own cost 13 × 24 simulations, a sixth of
+    # a fit, and only ever moved the prior-dominated nuisances' ends)
     z_lo, z_hi = z - Z95 * sd, z + Z95 * sd
     for zr in rivals:
-        sd_r = np.sqrt(np.clip(np.diag(laplace(zr)[1]), 0, None))
-        z_lo, z_hi = np.minimum(z_lo, zr - Z95 * sd_r), np.maximum(z_hi, zr + Z95 * sd_r)
+        z_lo, z_hi = np.minimum(z_lo, zr - Z95 * sd), np.maximum(z_hi, zr + Z95 * sd)
 
     # the Laplace interval is local and Gaussian: the free parameters' intervals come from a
     # scan of their cost profiles over the whole range (a → 0 is dry flanks)
@@ -1076,6 +1082,8 @@ Z_END = 8.0
 SCAN_FRACTIONS = (0.0, 0.2, 0.4, 0.6, 0.8, 1.0)
 #: … and offsets from the optimum in Laplace standard deviations.
 SCAN_OFFSETS = (-2.0, -1.0, 1.0, 2.0)
+#: Largest difference (in z) between the scan's two guesses that still counts as one point.
+SCAN_SAME = 0.05
 
 
 def _profile_scan(problem: _Problem, z, cov, y0, cost_of) -> tuple[dict, float]:
@@ -1111,8 +1119,11 @@ def _profile_scan(problem: _Problem, z, cov, y0, cost_of) -> tuple[dict, float]:
             fixed[i] = t
             moved = np.clip(z + beta * (t - z[i]), -Z_END, Z_END)
             moved[i] = t
-            zs += [fixed, moved]
-            owners += [(i, t)] * 2
+            # where the path hardly moves the others (an uncorrelated parameter, or a value
+            # close to the optimum) the two guesses are one point: simulate it once
+            guesses = [fixed] if np.max(np.abs(moved - fixed)) < SCAN_SAME else [fixed, moved]
+            zs += guesses
+            owners += [(i, t)] * len(guesses)
     if not owners:
         return {}, 0.0
     zs = np.stack(zs)
@@ -1168,17 +1179,16 @@ def _polish_profile(
     """
     zs = np.array(zs, dtype=float)
     n, p = zs.shape
-    eye = np.eye(p)
+    free = [np.flatnonzero(~np.isin(np.arange(p), fixed[k])) for k in range(n)]
     for _ in range(iterations):
         h = np.where(zs > 0, -steps, steps)  # towards the middle of each range
-        pts = np.concatenate([np.vstack([zs[k], zs[k] + h[k][:, None] * eye]) for k in range(n)])
-        res = residuals(pts).reshape(n, p + 1, -1)
+        # each point, then its forward differences along its free coordinates only
+        pts = [zs[k] + np.vstack([np.zeros(p), np.diag(h[k])[free[k]]]) for k in range(n)]
+        res = np.split(residuals(np.concatenate(pts)), np.cumsum([len(x) for x in pts])[:-1])
         trials = []
         for k in range(n):
-            r0 = res[k, 0]
-            jac = ((res[k, 1:] - r0) / h[k][:, None]).T  # (rows, P)
-            keep = ~np.isin(np.arange(p), fixed[k])
-            j = jac[:, keep]
+            r0, keep = res[k][0], free[k]
+            j = ((res[k][1:] - r0) / h[k][keep][:, None]).T  # (rows, free)
             jtj, g = j.T @ j, j.T @ r0
             for lam in damping:
                 step = np.zeros(p)
@@ -1187,7 +1197,7 @@ def _polish_profile(
         cost = np.sum(residuals(np.stack(trials)) ** 2, axis=1).reshape(n, len(damping))
         for k in range(n):
             best = int(np.argmin(cost[k]))
-            if cost[k, best] < np.sum(res[k, 0] ** 2):
+            if cost[k, best] < np.sum(res[k][0] ** 2):
                 zs[k] = trials[k * len(damping) + best]
     return zs
 
