@@ -14,7 +14,8 @@ backlash the flanks touch at ``q = −c`` (drive side: the driving gear pushes) 
   penetration (``max(0, ·)``, smoothed by a softplus of width ``contact_width``);
 * mesh stiffness (eq. 4): ``K(θ1)`` is the sum over the tooth pairs in contact of
   ``k_p·exp(C_a·|(φ − εΘp/2)/(1.125 εα Θp)|³)``, φ ∈ [0, εΘp] the engagement angle of the pair
-  (pair windows smoothed over ``mesh_width`` base pitches), scaled by ``stiffness_scale``;
+  (pair windows smoothed over ``mesh_width`` base pitches; periodic in θ1 with Θp, so
+  tabulated over one pitch), scaled by ``stiffness_scale``;
 * squeeze film (eq. 3, second and third lines; eq. 5): the film ahead of the motion resists the
   approach, ``F_squeeze = −S(h₊)·max(v, 0)·g(h₊) + S(h₋)·max(−v, 0)·g(h₋)`` with the gaps
   ``h± = c ∓ q``, ``g`` the gap indicator (1 while the flanks are apart) and S evaluated at
