@@ -957,8 +957,9 @@ def identify(
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     corr = cov / np.outer(np.maximum(sd, 1e-300), np.maximum(sd, 1e-300))
     # each rival optimum widens the intervals to cover its own 95 % interval, taken to be as
-    # wide as the optimum's (a Laplace stage of its own cost 13 × 24 simulations, a sixth of
-    # a fit, and only ever moved the prior-dominated nuisances' ends)
+    # wide as the optimum's: a Laplace stage of its own cost 13 × 24 simulations (a sixth of
+    # a fit), and it moves only the nuisances' ends (the free parameters' come from the
+    # profiles below, which keep every rival inside)
     z_lo, z_hi = z - Z95 * sd, z + Z95 * sd
     for zr in rivals:
         z_lo, z_hi = np.minimum(z_lo, zr - Z95 * sd), np.maximum(z_hi, zr + Z95 * sd)
