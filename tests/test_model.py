@@ -8,16 +8,7 @@ import numpy as np
 import pytest
 
 import rattlefit as rf
-
-
-def _by_hand(g, u):
-    """Eq. (4) with sharp windows: the pairs at engagement positions u + j inside [0, ε]."""
-    eps, eps_a = g.total_contact_ratio, g.transverse_contact_ratio
-    return g.pitch_point_stiffness * sum(
-        math.exp(g.stiffness_shape * abs((p - eps / 2) / (1.125 * eps_a)) ** 3)
-        for p in (u + j for j in range(4))
-        if 0 <= p <= eps
-    )
+from test_reference import sharp_stiffness  # eq. (4) written out, sharp windows
 
 
 @pytest.mark.parametrize("pair", ["I", "II"])
@@ -45,7 +36,7 @@ def test_stiffness_away_from_window_edges_is_the_closed_form(pair2, u):
     if min(abs(u + j - e) for j in range(4) for e in (0.0, eps)) < 0.25:
         pytest.skip("a window edge is within 25 widths")
     k = float(model.mesh_stiffness(u * pair2.base_pitch_angle, 0.9))
-    assert k == pytest.approx(0.9 * _by_hand(pair2, u), rel=1e-9)
+    assert k == pytest.approx(sharp_stiffness(pair2, u * pair2.base_pitch_angle, 0.9), rel=1e-9)
 
 
 def test_stiffness_is_continuous_across_a_base_pitch(pair2):
