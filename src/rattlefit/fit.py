@@ -132,6 +132,11 @@ class FitOptions:
         65.4 mm, seed 0): with 0.2 the joint fit's T_b interval was 0.74 wide in log, wider
         than the single 65.4 mm file's 0.57; with 0.1 it was 0.16 against 0.55, χ² 57 on 58,
         the truth inside. The second-order bias of the dither grows as its square.
+        It is not small in mild rattle, whose mean features are a rough function of the
+        parameters at scales of a few per cent (benchmarks/dither_bias.py): at the truth of
+        that sweep's 65.4 mm file, 0.1 moves them by up to 4 of one recording's spreads (mean
+        square 3.1 against 0.18 undithered), and the joint fit's ``drag_torque`` sits just
+        below its truth; 0.03 did not remove that (benchmarks/README, "Dither bias").
     n_noise_realisations : realisations used to estimate each band's run-to-run spread (the
         weights during the fit).
     n_covariance_realisations : realisations used for the full band covariance at the
