@@ -7,6 +7,10 @@ fit called `a` identified. Issue 3's check: truth inside the interval in ≥ 90 
 `a` within 20 % where reported identified.
 
     python benchmarks/coverage.py [--cases 10] [--seed 0] [--json out.json] [--only K ...]
+                                  [--rtol R] [--dither D]
+
+`--rtol` and `--dither` replace those `FitOptions` fields (the defaults otherwise), to measure
+what a cheaper tolerance or another dither does to coverage.
 
 Each case costs one identification (100–450 s on 2 cores), so the default sample of 10 takes
 ~35 minutes. Seeds are printed; every case is reproducible.
@@ -17,6 +21,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
+import os
 import time
 
 import numpy as np
@@ -48,8 +53,14 @@ def main() -> None:
         metavar="K",
         help="run only these cases of the seeded sample (1-based, as printed)",
     )
+    ap.add_argument("--rtol", type=float, help="FitOptions.rtol (default: FitOptions')")
+    ap.add_argument("--dither", type=float, help="FitOptions.dither (default: FitOptions')")
     args = ap.parse_args()
-    print(f"{rf.use_cpu_cores()} JAX device(s); seed {args.seed}", flush=True)
+    overrides = {k: getattr(args, k) for k in ("rtol", "dither") if getattr(args, k) is not None}
+    print(
+        f"{rf.use_cpu_cores()} JAX device(s); seed {args.seed}; FitOptions overrides {overrides}",
+        flush=True,
+    )
     rng = np.random.default_rng(args.seed)
     picks = rng.choice(len(GRID), size=min(args.cases, len(GRID)), replace=False)
     rows = []
@@ -65,7 +76,7 @@ def main() -> None:
             continue
         rec, _ = synthesize(g, op, params, seed=seed)
         t0 = time.perf_counter()
-        res = identify([rec], FitOptions(seed=seed))
+        res = identify([rec], FitOptions(seed=seed, **overrides))
         truth = {"a": a, "drag_torque": DRAG[pair], "viscosity": mu}
         row = {
             "case": f"pair {pair}, {lub}, {cd} mm, {pct} %, {f:g} Hz",
@@ -111,9 +122,11 @@ def main() -> None:
         f"{len(flagged)} case(s) flagged as a poor fit; coverage of the others: "
         f"{hit}/{3 * len(unflagged)}"
     )
-    if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(rows, fh, indent=2)
+    if args.json:  # written whole, then renamed: never a half-written file
+        tmp = f"{args.json}.tmp"
+        with open(tmp, "w") as fh:
+            json.dump({"options": overrides, "seed": args.seed, "cases": rows}, fh, indent=2)
+        os.replace(tmp, args.json)
 
 
 if __name__ == "__main__":
