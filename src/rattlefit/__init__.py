@@ -6,10 +6,16 @@ simulates it differentiably with JAX/diffrax and identifies the oil-film half-le
 drag torque ``T_b`` and the effective viscosity from recordings.
 
 Importing rattlefit enables JAX's 64-bit mode: the contact law spans displacements from
-nanometres (static deflection) to millimetres (backlash) and needs double precision.
+nanometres (static deflection) to millimetres (backlash) and needs double precision. It also
+caps XLA's CPU instruction set (AVX2 on x86-64) so that a seeded result is the same on every
+machine: see :mod:`rattlefit.reproducibility`.
 """
 
-import jax
+from .reproducibility import pin_cpu_isa
+
+pin_cpu_isa()
+
+import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 
@@ -19,6 +25,7 @@ from .geometry import GearGeometry, table2_pair  # noqa: E402
 from .model import Effect, RattleModel, RattleParams, Smoothing  # noqa: E402
 from .oil import dynamic_viscosity  # noqa: E402
 from .parallel import use_cpu_cores  # noqa: E402
+from .reproducibility import platform_info  # noqa: E402
 from .simulate import Solution, simulate, simulate_batch  # noqa: E402
 
 __version__ = "0.1.0"
@@ -36,6 +43,7 @@ __all__ = [
     "Solution",
     "SolverError",
     "dynamic_viscosity",
+    "platform_info",
     "simulate",
     "simulate_batch",
     "table2_pair",

@@ -1,0 +1,92 @@
+"""The same seed gives the same numbers on every x86-64 CPU.
+
+XLA compiles for the CPU it finds: with AVX-512 a vectorised transcendental or a fused
+multiply–add rounds differently from the same code compiled for AVX2. Rattle is chaotic, so
+that last-bit difference grows into another realisation of the motion within tens of
+milliseconds of simulated time, and a seeded synthetic recording, fit or diagnosis comes out
+differently on two machines of one cloud. Measured (session 13, pair II at 65.0 mm, 10 % at
+8 Hz, seed 11, on an AMD EPYC with AVX-512): capping XLA at SSE4.2, AVX2 and AVX-512 gave three
+different recordings, the uncapped default the AVX-512 one; the seeded fit of
+``tests/test_fit.py::test_mild_rattle_bounds_a`` bounded ``a`` with one and missed it with the
+other, so the test suite's verdict depended on the machine CI happened to get.
+
+On import, rattlefit therefore caps XLA's CPU instruction set at :data:`DEFAULT_CPU_ISA`
+(AVX2, with FMA: every x86-64 server CPU since about 2015 has it) by adding
+``--xla_cpu_max_isa`` to ``XLA_FLAGS``. It must do so before JAX starts its CPU backend; a
+cap the user already set in ``XLA_FLAGS`` is kept. ``RATTLEFIT_CPU_ISA`` chooses another cap,
+or ``native`` for none. Results are then reproducible for a given seed, device count and cap,
+which :func:`platform_info` reports (every fit's JSON carries it). On other architectures
+(aarch64) and on GPUs nothing is changed.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import re
+import warnings
+
+#: The instruction-set cap rattlefit applies to XLA on x86-64 unless told otherwise.
+DEFAULT_CPU_ISA = "AVX2"
+#: The environment variable that overrides it ("native": no cap).
+ISA_ENV = "RATTLEFIT_CPU_ISA"
+
+_FLAG = re.compile(r"--xla_cpu_max_isa=(\S+)")
+_X86 = ("x86_64", "amd64", "i386", "i686")
+
+
+def _backend_started() -> bool:
+    try:
+        from jax._src import xla_bridge
+
+        return bool(xla_bridge.backends_are_initialized())
+    except (ImportError, AttributeError):  # pragma: no cover - a JAX without the helper
+        return False
+
+
+def pin_cpu_isa(isa: str | None = None) -> str:
+    """Cap XLA's CPU instruction set so that results do not depend on the machine.
+
+    ``isa`` defaults to ``$RATTLEFIT_CPU_ISA``, else :data:`DEFAULT_CPU_ISA`; ``"native"``
+    leaves XLA alone. A cap already in ``XLA_FLAGS`` wins. Returns the cap in effect
+    ("native" for none). If JAX's backend has already started, the flag can no longer take
+    effect: a warning says so and nothing is changed.
+    """
+    flags = os.environ.get("XLA_FLAGS", "")
+    already = _FLAG.search(flags)
+    if already:
+        return already.group(1)
+    isa = isa or os.environ.get(ISA_ENV) or DEFAULT_CPU_ISA
+    if isa.lower() == "native" or platform.machine().lower() not in _X86:
+        return "native"
+    if _backend_started():
+        warnings.warn(
+            "rattlefit: JAX started before rattlefit was imported, so XLA's CPU instruction "
+            f"set is not capped at {isa}; seeded results may differ between machines. Import "
+            "rattlefit before running any JAX computation.",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+        return "native"
+    os.environ["XLA_FLAGS"] = f"{flags} --xla_cpu_max_isa={isa}".strip()
+    return isa
+
+
+def cpu_isa() -> str:
+    """The instruction-set cap XLA runs under ("native" for none)."""
+    found = _FLAG.search(os.environ.get("XLA_FLAGS", ""))
+    return found.group(1) if found and platform.machine().lower() in _X86 else "native"
+
+
+def platform_info() -> dict:
+    """What a seeded result depends on besides its inputs: JAX version, backend, device
+    count, machine architecture and the CPU instruction-set cap."""
+    import jax
+
+    return {
+        "jax": jax.__version__,
+        "backend": jax.default_backend(),
+        "devices": len(jax.local_devices()),
+        "machine": platform.machine(),
+        "cpu_isa": cpu_isa(),
+    }

@@ -1,0 +1,77 @@
+"""A seeded result must not depend on the CPU that computed it (rattlefit.reproducibility)."""
+
+import json
+import os
+import platform
+import subprocess
+import sys
+
+import pytest
+
+from rattlefit import reproducibility as rp
+
+X86 = platform.machine().lower() in ("x86_64", "amd64")
+
+# A 1 s synthetic recording of the mild rattle: long enough for the chaos to grow a last-bit
+# difference into another recording (measured on an AVX-512 EPYC: the uncapped default and the
+# AVX2 cap give different counts; at 0.3 s they still agree).
+SCRIPT = """
+import hashlib, json, os
+import numpy as np
+import rattlefit as rf
+from rattlefit.recording import OperatingPoint
+from rattlefit.synthetic import synthesize
+g = rf.table2_pair("II", center_distance_mm=65.0)
+op = OperatingPoint("boundary", 20.0, 52.36, 5.236, 8.0)
+p = rf.RattleParams(0.085e-3, 0.025, 0.4942, g.backlash)
+rec, _ = synthesize(g, op, p, seed=11, duration=1.0, burn_in=0.5)
+counts = np.asarray(rec.secondary)
+print(json.dumps({"hash": hashlib.sha1(counts.tobytes()).hexdigest(),
+                  "platform": rf.platform_info()}))
+"""
+
+
+def _run(env_changes):
+    env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", rp.ISA_ENV)}
+    env.update(env_changes)
+    out = subprocess.run(
+        [sys.executable, "-c", SCRIPT], env=env, capture_output=True, text=True, check=True
+    )
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.skipif(not X86, reason="the cap applies to x86-64 CPUs only")
+def test_import_caps_the_isa_before_jax_starts():
+    # the default import must give exactly what an explicit XLA cap gives: if the cap were set
+    # too late (after JAX started its backend) or not at all, an AVX-512 machine would compute
+    # the native realisation instead
+    default = _run({})
+    explicit = _run({rp.ISA_ENV: "native", "XLA_FLAGS": f"--xla_cpu_max_isa={rp.DEFAULT_CPU_ISA}"})
+    assert default["hash"] == explicit["hash"]
+    assert default["platform"]["cpu_isa"] == rp.DEFAULT_CPU_ISA
+    assert default["platform"]["devices"] >= 1 and default["platform"]["jax"]
+
+
+def test_a_cap_the_user_set_wins(monkeypatch):
+    monkeypatch.setenv("XLA_FLAGS", "--xla_foo=1 --xla_cpu_max_isa=SSE4_2")
+    monkeypatch.setenv(rp.ISA_ENV, "AVX512")
+    assert rp.pin_cpu_isa() == "SSE4_2"
+    assert os.environ["XLA_FLAGS"] == "--xla_foo=1 --xla_cpu_max_isa=SSE4_2"
+
+
+def test_native_leaves_xla_alone(monkeypatch):
+    monkeypatch.setenv("XLA_FLAGS", "--xla_foo=1")
+    monkeypatch.setenv(rp.ISA_ENV, "native")
+    assert rp.pin_cpu_isa() == "native"
+    assert os.environ["XLA_FLAGS"] == "--xla_foo=1"
+    assert rp.cpu_isa() == "native"
+
+
+@pytest.mark.skipif(not X86, reason="the cap applies to x86-64 CPUs only")
+def test_too_late_a_cap_warns_and_changes_nothing(monkeypatch):
+    # the test process has started JAX (conftest): a cap set now could not take effect
+    monkeypatch.setenv("XLA_FLAGS", "--xla_foo=1")
+    monkeypatch.delenv(rp.ISA_ENV, raising=False)
+    with pytest.warns(RuntimeWarning, match="not capped"):
+        assert rp.pin_cpu_isa() == "native"
+    assert os.environ["XLA_FLAGS"] == "--xla_foo=1"
