@@ -66,6 +66,7 @@ from .fit import (
     identify,
 )
 from .recording import Recording
+from .reproducibility import platform_info
 
 #: A band counts as missed when its standardised residual exceeds this (in σ).
 MISSED_Z = 3.0
@@ -195,6 +196,7 @@ class Diagnosis:
             "refit": {"cost_identified": self.refit_costs[0], "cost": self.refit_costs[1]},
             "warnings": list(self.warnings),
             "seed": self.seed,
+            "platform": platform_info(),  # seeded results depend on it
             "wall_time_s": self.wall_time,
             "recordings": self.baseline.recordings,
         }

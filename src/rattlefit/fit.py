@@ -68,6 +68,7 @@ from .errors import RattlefitError
 from .model import DEFAULT_MIN_FILM, Effect, RattleModel, RattleParams
 from .parallel import map_blocks
 from .recording import Recording
+from .reproducibility import platform_info
 from .rig import RigSetup, setup
 from .simulate import _static_options, quantised_relative_motion, solve_rows
 from .spectra import spectral_features
@@ -388,6 +389,7 @@ class FitResult:
                 "success": self.success,
                 "message": self.message,
                 "seed": self.seed,
+                "platform": platform_info(),  # seeded results depend on it
                 "wall_time_s": self.wall_time,
                 "recordings": self.recordings,
                 "correlation": {"names": self.names, "matrix": self.correlation.tolist()},

@@ -45,6 +45,7 @@ import numpy as np
 from .errors import RattlefitError
 from .fit import FitOptions, FitResult, NoiseModel, ParameterSpec, _build, _evaluate, identify
 from .recording import Recording
+from .reproducibility import platform_info
 
 #: Walkers beyond this |z| have a value within e^-20 of its range's end: zero density there.
 Z_LIMIT = 20.0
@@ -221,6 +222,7 @@ class Posterior:
                 "ess": dict(zip(self.names, map(float, self.ess), strict=True)),
                 "reliable": self.reliable,
                 "seed": self.seed,
+                "platform": platform_info(),  # seeded results depend on it
                 "wall_time_s": self.wall_time,
                 "evaluations": self.n_evaluations,
                 "recordings": self.recordings,
