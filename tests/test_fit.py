@@ -75,17 +75,21 @@ def test_mild_rattle_bounds_a(mild_recording):
 
 def test_dry_flanks_are_not_given_a_film():
     # pair I, dry (a = 0), 10 % at 8 Hz: a weak film fits about as well as none, so the fit
-    # must not claim a film: its interval must reach films too short to matter. The squeeze
-    # force scales as a³, so a 5 µm film damps (5/85)³ = 2e-4 of a boundary film's 85 µm; below
-    # that the profile is flat up to Monte Carlo noise (measured: lower ends of 0, i.e. the
-    # range's end, and 2.3 µm, depending on the noise at the scan's lowest value)
+    # must not claim a film: its interval must reach films too short to matter, and stop short
+    # of the boundary films (the paper's 0.07–0.1 mm). The squeeze force scales as a³, so a
+    # 10 µm film damps (10/85)³ = 0.16 % of a boundary film's 85 µm. Below about that the
+    # profile is flat up to Monte Carlo noise, and where the interval's lower end falls depends
+    # on the noise at the few values scanned there (measured lower ends: 0, i.e. the range's
+    # end, and 2.3 µm in realisations computed with AVX-512; 6.2 µm with the AVX2 cap, the
+    # profile 1–5.5 µm lying 11–16 above the optimum against a threshold of 10.2, and two
+    # points 0.01 apart in log a differing by 5: that is the noise)
     g = rf.table2_pair("I", center_distance_mm=65.0)
     op = OperatingPoint("dry", 20.0, 52.36, 5.236, 8.0)
     p = rf.RattleParams(0.0, 0.03, 0.4942, g.backlash)
     rec, _ = synthesize(g, op, p, seed=920630831)
     result = identify([rec], FitOptions(seed=920630831))
     a = result.parameters["a"]
-    assert a.lower < 5e-6 and not a.identified, a
+    assert a.lower < 10e-6 and a.upper < 70e-6 and not a.identified, a
     truth = {k: v for k, v in _truth_of(p).items() if k != "a"}
     assert all(_covered(result, truth).values()), result.parameters
 
