@@ -9,7 +9,7 @@ same machine load; the first call in each process compiles, the second is timed.
 workload is timed too: 16 members in one lockstep ``simulate_batch`` (rtol 1e-6). It also
 reports whether the caps give the same recording (they do not where the CPU has AVX-512).
 
-    python benchmarks/isa_cost.py                 # native vs AVX2, 3 repetitions, ~3 min
+    python benchmarks/isa_cost.py                 # native vs AVX2, 3 repetitions, ~1 min
     python benchmarks/isa_cost.py --caps native,AVX2,SSE4_2 --repeat 5
 """
 
