@@ -94,7 +94,8 @@ def test_diagnose_names_withheld_flank_friction_and_sizes_it(tmp_path):
 @pytest.mark.skipif(
     not os.environ.get("RATTLEFIT_SLOW"),
     reason="CI time budget (the clean-clone run reached 24 min with it): run with "
-    "RATTLEFIT_SLOW=1 (passed in session 8, 172–225 s on one core). In CI the withheld-"
+    "RATTLEFIT_SLOW=1 (passed in session 8, 172–225 s on one core, and in session 14 with "
+    "the extra drag starts, 294 s beside another job). In CI the withheld-"
     "friction test checks that the wrong effects are not supported.",
 )
 def test_diagnose_supports_nothing_when_nothing_is_withheld():
