@@ -15,8 +15,11 @@ from rattlefit.ensemble import band_sigma as _band_sigma
 from rattlefit.ensemble import chaotic_part as _chaotic_part
 from rattlefit.ensemble import shrunk_correlation
 from rattlefit.fit import (
+    PROFILE_MIN_STEP,
+    PROFILE_RESOLUTION,
     FitOptions,
     ParameterSpec,
+    _bisect_profile_ends,
     _debiased_information,
     _estimate,
     _polish_profile,
@@ -97,12 +100,27 @@ def test_dry_flanks_are_not_given_a_film():
 @pytest.mark.skipif(
     not os.environ.get("RATTLEFIT_SLOW"),
     reason="three fits, 23–36 min on one JAX device; run with RATTLEFIT_SLOW=1. Issue 3's "
-    "joint-fit criterion is not met: it fails on the current code (session 11, tabulated mesh "
-    "stiffness: joint T_b [0.0186, 0.0232] N m, truth 0.025); in session 7 it passed only with "
-    "two exact vector-field rewrites, since reverted (without them: [0.0166, 0.0244]). Cause "
-    "measured in session 12: the dither's smoothing of a rough feature surface (benchmarks/README)",
+    "joint-fit criterion is not met. Session 15 (AVX2 cap): the joint T_b interval "
+    "[0.0186, 0.0232] N m misses the true 0.025 (the scan's coarse values decide its upper "
+    "end); with the profile ends bisected (FitOptions.profile_bisections=4, off by default) it "
+    "holds it, [0.0184, 0.0268], but is wider (0.37 in log) than the single 65.4 mm file's "
+    "(0.29): the joint optimum stops short of its profile's minimum (benchmarks/README)",
 )
 def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
+    # Session 15 (AVX2 cap, seed 0, one device per fit), defaults: singles T_b [0.0132, 0.0291]
+    # (65.0 mm) and [0.0222, 0.0273] (65.4 mm), joint [0.0186, 0.0232], χ² 84 on 58.
+    # With profile_bisections=4 (two guesses per value, the form first tried): singles T_b
+    # [0.0171, 0.0287] (65.0 mm) and [0.0201, 0.0268] (65.4 mm), joint [0.0184, 0.0268]: the
+    # truth is inside all three, but the joint is wider than the 65.4 mm fit's. Its
+    # Levenberg–Marquardt runs all stopped at the step limit at T_b 0.0193, and its own profile
+    # is 12 lower at 0.0228 (and −2.5 at 0.0246): the lower end is anchored at an optimum that
+    # is not one. The profile is also rough: Δcost jumps by 15–30 between values 2 % of T_b
+    # apart, against the 8 the threshold allows for Monte Carlo noise, so where an end falls
+    # is partly chance. Next steps: more iterations (or a re-centring on the profile's
+    # minimum) for joint fits, and a threshold that includes the profile's own roughness.
+    # With the defaults the scan's coarse values decide the ends: the joint T_b profile is
+    # −12 at the last value inside and +1038 at the next one scanned, 0.65 further in z, so
+    # the upper end sticks at 0.0232 and misses.
     # Session 12 measured the cause (benchmarks/dither_bias.py, benchmarks/README "Dither bias
     # in mild rattle"): undithered, the fit's machinery reproduces the data's mean features at
     # the truth, but they are a rough function of T_b at a few per cent, and the dither's
@@ -147,12 +165,13 @@ def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
 
 
 # the independent simulator's files whose truth lists no extra effects (all five)
-# Two of the five run only with RATTLEFIT_SLOW=1, to keep CI under its time budget (each fit
+# Four of the five run only with RATTLEFIT_SLOW=1, to keep CI under its time budget (each fit
 # takes 4–9 min on one core). Measured in session 5 (seed 0, one device, quantisation
 # "encoders", dither 0.1): four of five hold their truth, the pair II oil-jet file misses T_b
 # (xfail below; in session 4, with the white floor and dither 0.2, all five held it but the
-# synthetic mild file missed T_b). CI keeps the pair II oil-jet file, both pair I files and,
-# through the synthetic tests above, the mild and dry cases.
+# synthetic mild file missed T_b). CI keeps the pair I oil-jet file and, through the
+# synthetic tests above, the mild and dry cases; the other four run with RATTLEFIT_SLOW=1
+# (session 15: the whole suite took 25 min on 2 workers with the pair I boundary file in it).
 _SLOW_ONLY = pytest.mark.skipif(
     not os.environ.get("RATTLEFIT_SLOW"),
     reason="CI time budget: run with RATTLEFIT_SLOW=1 (passed in session 6, 545–638 s each)",
@@ -181,7 +200,15 @@ SHARED_CASES = [
             ),
         ],
     ),
-    "pairI_boundary_66.0_20pct_16Hz",
+    pytest.param(
+        "pairI_boundary_66.0_20pct_16Hz",
+        marks=pytest.mark.skipif(
+            not os.environ.get("RATTLEFIT_SLOW"),
+            reason="CI time budget: run with RATTLEFIT_SLOW=1 (passed in CI through session 14, "
+            "308 s on one core in session 15; moved out of CI when the suite reached 25 min "
+            "on this 2-core machine)",
+        ),
+    ),
     "pairI_oiljet_65.4_20pct_8Hz",
 ]
 
@@ -362,9 +389,34 @@ def test_polish_profile_reaches_the_profile_minimum():
 def test_profile_interval_spans_values_below_the_threshold():
     z = np.zeros(2)
     prof = {t: (t**2, z) for t in (-3.0, -2.0, -1.0, 0.0, 1.0, 2.0)}
-    (lo, hi), outside = _profile_interval(prof, 3.0)
+    (lo, hi), brackets = _profile_interval(prof, 3.0)
     assert (lo, hi) == pytest.approx((-1.0 - 2 / 3, 1.0 + 2 / 3))
-    assert outside == [-2.0, 2.0]  # the values that decide the ends
+    assert brackets == [(-1.0, -2.0), (1.0, 2.0)]  # (inside, outside): they decide the ends
     prof[2.0] = (1.0, z)  # lowered (e.g. re-optimised): the upper end runs to the last value
-    (lo, hi), outside = _profile_interval(prof, 3.0)
-    assert hi == 2.0 and outside == [-2.0]
+    (lo, hi), brackets = _profile_interval(prof, 3.0)
+    assert hi == 2.0 and brackets == [(-1.0, -2.0)]
+
+
+def test_bisection_finds_the_profile_ends_a_coarse_scan_misses():
+    # a profile Δ(t) = 100 (t − 0.3)² of parameter 0 of two, scanned as _profile_scan does:
+    # at the optimum, at ±1 and ±2 of its Laplace sd (0.05) and at coarse fractions of the
+    # range. The exact 95 % ends are 0.3 ± √3.84/10 = 0.3 ± 0.196, well beyond ±2 sd.
+    threshold = 3.84
+
+    def delta(points):
+        return 100.0 * (np.asarray(points)[:, 0] - 0.3) ** 2
+
+    ts = [-8.0, -3.0, 0.2, 0.25, 0.3, 0.35, 0.4, 3.0, 8.0]
+    profiles = {0: {t: (float(delta([[t, 0.0]])[0]), np.array([t, 0.0])) for t in ts}}
+    (lo0, hi0), _ = _profile_interval(profiles[0], threshold)
+    # linear across (0.4, 3.0), where Δ jumps from 1 to 729: the end sticks to 0.4
+    assert hi0 < 0.42 and lo0 > 0.18
+
+    n = _bisect_profile_ends(profiles, threshold, delta, rounds=12)
+    (lo, hi), brackets = _profile_interval(profiles[0], threshold)
+    assert n > 0 and hi == pytest.approx(0.3 + np.sqrt(threshold) / 10, abs=0.01)
+    # each bracket is now narrower than the resolution asked for (or the minimum step)
+    width = max(PROFILE_RESOLUTION * (hi - lo), PROFILE_MIN_STEP)
+    assert all(abs(t_out - t_in) <= width for t_in, t_out in brackets)
+    # points inside keep the other parameter where the value inside had it
+    assert all(abs(zk[1]) < 1e-12 for _, zk in profiles[0].values())
