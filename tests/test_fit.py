@@ -100,16 +100,15 @@ def test_dry_flanks_are_not_given_a_film():
 @pytest.mark.skipif(
     not os.environ.get("RATTLEFIT_SLOW"),
     reason="three fits, 23–36 min on one JAX device; run with RATTLEFIT_SLOW=1. Issue 3's "
-    "joint-fit criterion is not met. Session 15 (AVX2 cap): the joint T_b interval "
-    "[0.0186, 0.0232] N m misses the true 0.025 (the scan's coarse values decide its upper "
-    "end); with the profile ends bisected (FitOptions.profile_bisections=4, off by default) it "
-    "holds it, [0.0184, 0.0268], but is wider (0.37 in log) than the single 65.4 mm file's "
-    "(0.29): the joint optimum stops short of its profile's minimum (benchmarks/README)",
+    "joint-fit criterion is not met. Session 15 (AVX2 cap): with the profile ends bisected "
+    "the joint T_b interval [0.0184, 0.0268] N m holds the true 0.025 but is wider (0.37 in log) "
+    "than the single 65.4 mm file's [0.0201, 0.0268] (0.29): the joint optimum stops short of "
+    "its profile's minimum. Before the bisection it missed ([0.0186, 0.0232]; benchmarks/README)",
 )
 def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
-    # Session 15 (AVX2 cap, seed 0, one device per fit), defaults: singles T_b [0.0132, 0.0291]
-    # (65.0 mm) and [0.0222, 0.0273] (65.4 mm), joint [0.0186, 0.0232], χ² 84 on 58.
-    # With profile_bisections=4 (two guesses per value, the form first tried): singles T_b
+    # Session 15 (AVX2 cap, seed 0, one device per fit), without the profile bisection: singles
+    # T_b [0.0132, 0.0291] (65.0 mm) and [0.0222, 0.0273] (65.4 mm), joint [0.0186, 0.0232],
+    # χ² 84 on 58. With it (profile_bisections=4, the default since): singles T_b
     # [0.0171, 0.0287] (65.0 mm) and [0.0201, 0.0268] (65.4 mm), joint [0.0184, 0.0268]: the
     # truth is inside all three, but the joint is wider than the 65.4 mm fit's. Its
     # Levenberg–Marquardt runs all stopped at the step limit at T_b 0.0193, and its own profile
@@ -118,9 +117,9 @@ def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
     # apart, against the 8 the threshold allows for Monte Carlo noise, so where an end falls
     # is partly chance. Next steps: more iterations (or a re-centring on the profile's
     # minimum) for joint fits, and a threshold that includes the profile's own roughness.
-    # With the defaults the scan's coarse values decide the ends: the joint T_b profile is
-    # −12 at the last value inside and +1038 at the next one scanned, 0.65 further in z, so
-    # the upper end sticks at 0.0232 and misses.
+    # Without the bisection the scan's coarse values decided the ends: the joint T_b profile
+    # was −12 at the last value inside and +1038 at the next one scanned, 0.65 further in z,
+    # so the upper end stuck at 0.0232 and missed.
     # Session 12 measured the cause (benchmarks/dither_bias.py, benchmarks/README "Dither bias
     # in mild rattle"): undithered, the fit's machinery reproduces the data's mean features at
     # the truth, but they are a rough function of T_b at a few per cent, and the dither's
@@ -401,6 +400,8 @@ def test_bisection_finds_the_profile_ends_a_coarse_scan_misses():
     # a profile Δ(t) = 100 (t − 0.3)² of parameter 0 of two, scanned as _profile_scan does:
     # at the optimum, at ±1 and ±2 of its Laplace sd (0.05) and at coarse fractions of the
     # range. The exact 95 % ends are 0.3 ± √3.84/10 = 0.3 ± 0.196, well beyond ±2 sd.
+    z = np.array([0.3, 0.0])
+    cov = np.diag([0.05**2, 1.0])
     threshold = 3.84
 
     def delta(points):
@@ -412,7 +413,7 @@ def test_bisection_finds_the_profile_ends_a_coarse_scan_misses():
     # linear across (0.4, 3.0), where Δ jumps from 1 to 729: the end sticks to 0.4
     assert hi0 < 0.42 and lo0 > 0.18
 
-    n = _bisect_profile_ends(profiles, threshold, delta, rounds=12)
+    n = _bisect_profile_ends(profiles, threshold, z, cov, delta, rounds=12)
     (lo, hi), brackets = _profile_interval(profiles[0], threshold)
     assert n > 0 and hi == pytest.approx(0.3 + np.sqrt(threshold) / 10, abs=0.01)
     # each bracket is now narrower than the resolution asked for (or the minimum step)

@@ -180,17 +180,16 @@ class FitOptions:
     profile_bisections : rounds of bisecting the bracket of each profile interval's end
         (the last value inside and the first outside) where it is wide
         (:func:`_bisect_profile_ends`), before and after each ``profile_rounds`` round.
-        Off (0) by default: measured in session 15 (4 rounds), it put the truth inside the
-        joint backlash-sweep fit's ``drag_torque`` interval, which had missed it, but it
-        made the mild synthetic file's ``a`` interval miss ([108, 159] µm against 85 µm).
-        The profiles are rough (Δcost jumps by 15–30 between values 2 % apart, against the
-        6–8 the threshold allows for Monte Carlo noise), and a finer look at a rough profile
-        finds spikes that end an interval early; the coarse scan's interpolation hid them.
-        It needs a threshold that includes the profile's roughness before it can be on.
+        Measured in session 15: on the joint fit of a synthetic backlash sweep (pair II,
+        10 % at 8 Hz) it put the truth inside the ``drag_torque`` interval, which the coarse
+        scan's interpolation had ended early; it costs about a fifth more wall time.
     profile_roughness : widen the profile threshold's noise allowance to the measured spread
         of the cost at :data:`PROFILE_JITTER` steps from the optimum (in z, 1–2 % of the
         parameter), when that exceeds the analytic Monte Carlo allowance. Off by default
-        (an experiment of session 15, not yet measured over a coverage study).
+        (an experiment of session 15, not measured over a coverage study). Measured on the
+        mild synthetic file of tests/test_fit.py: Δcost rms 17.8 within 1–2 % of the
+        optimum against 3.6 for Monte Carlo noise alone — the profiles are rough, and the
+        analytic allowance undercounts the noise of an interval's end by about 5×.
     seed : seeds the release positions and the starts (reported in the result).
     rtol : simulator tolerance (atol is 1e-3 of it, in m and m/s). 1e-4 matches the band
         features of the sharp scipy reference at six of the seven shared operating points
@@ -231,7 +230,7 @@ class FitOptions:
     floor_uncertainty: float = 0.0
     model_discrepancy: float = 0.0
     profile_rounds: int = 2
-    profile_bisections: int = 0
+    profile_bisections: int = 4
     profile_roughness: bool = False
     seed: int = 0
     rtol: float = 1e-5
@@ -245,9 +244,9 @@ class FitOptions:
     @classmethod
     def quick(cls, **overrides) -> "FitOptions":
         """A rough first look, several times cheaper than the defaults: fewer realisations,
-        starts and iterations, a covariance from 8 realisations and the profile ends not
-        re-optimised. Its intervals are wider and less reliable; ``overrides`` replace any
-        field."""
+        starts and iterations, a covariance from 8 realisations and the profile ends neither
+        bisected nor re-optimised. Its intervals are wider and less reliable; ``overrides``
+        replace any field."""
         preset = dict(
             n_realisations=3,
             n_noise_realisations=6,
@@ -256,6 +255,7 @@ class FitOptions:
             n_refine=1,
             max_iterations=3,
             profile_rounds=0,
+            profile_bisections=0,
         )
         return cls(**{**preset, **overrides})
 
@@ -1031,7 +1031,7 @@ def identify(
 
     def bisect_ends():
         n = _bisect_profile_ends(
-            profiles, threshold, profile_costs, rounds=options.profile_bisections
+            profiles, threshold, z, cov, profile_costs, rounds=options.profile_bisections
         )
         if n:
             say(f"  bisected the profile intervals' ends ({n} points)")
@@ -1186,21 +1186,24 @@ def _profile_scan(problem: _Problem, z, cov, y0, cost_of) -> tuple[dict, float]:
     return profiles, float(cost[0])
 
 
-def _profile_guesses(z, cov, i: int, t: float) -> list[np.ndarray]:
-    """Where to put the other parameters when parameter ``i`` is held at ``t``: kept at the
-    optimum ``z``, and moved along the Laplace profile path ``z + Σ[:, i]/Σ_ii · (t − z_i)``.
-    Where the two nearly coincide (an uncorrelated parameter, or a value close to the
-    optimum) they are one point, simulated once."""
+def _profile_guesses(z, cov, i: int, t: float, near=None) -> list[np.ndarray]:
+    """Where to put the other parameters when parameter ``i`` is held at ``t``: as at the
+    point ``near`` (default: the optimum ``z``; in a bisection, the value inside), and moved
+    from the optimum along the Laplace profile path ``z + Σ[:, i]/Σ_ii · (t − z_i)``. Where
+    the two nearly coincide (an uncorrelated parameter, or a value close to the optimum)
+    they are one point, simulated once."""
     z = np.asarray(z, dtype=float)
     beta = np.clip(cov[:, i] / cov[i, i], -10, 10) if cov[i, i] > 0 else np.zeros_like(z)
-    kept = z.copy()
+    kept = (z if near is None else np.asarray(near, dtype=float)).copy()
     kept[i] = t
     moved = np.clip(z + beta * (t - z[i]), -Z_END, Z_END)
     moved[i] = t
     return [kept] if np.max(np.abs(moved - kept)) < SCAN_SAME else [kept, moved]
 
 
-def _bisect_profile_ends(profiles: dict, threshold: float, cost_of_points, *, rounds: int) -> int:
+def _bisect_profile_ends(
+    profiles: dict, threshold: float, z, cov, cost_of_points, *, rounds: int
+) -> int:
     """Narrow the bracket of each profile interval's ends by bisection, in place.
 
     The scan's values lie far apart away from the optimum (fractions of the whole range),
@@ -1211,8 +1214,12 @@ def _bisect_profile_ends(profiles: dict, threshold: float, cost_of_points, *, ro
     end sat at the last value inside by construction, and missed the truth. Each round
     evaluates, in one batch, the midpoint of every bracket (last value inside, first
     outside) wider than :data:`PROFILE_RESOLUTION` of its interval (and at least
-    :data:`PROFILE_MIN_STEP` in z), with the other parameters as at the value inside (a
-    continuation of the profile; the polish that follows re-optimises them).
+    :data:`PROFILE_MIN_STEP` in z), with the other parameters set both ways of
+    :func:`_profile_guesses` (as at the value inside, and along the Laplace path), the lower
+    cost standing. One guess is not enough: where the valley bends (``a`` against ``h_min``
+    in mild rattle) the value inside's overstates the profile, and bisection then ends the
+    interval early (measured on the mild synthetic file of tests/test_fit.py: ``a``
+    [108, 159] µm against the true 85 µm with it alone, [80, 205] µm with both).
 
     ``cost_of_points`` maps points (N, P) to their costs above the optimum's (N,). Returns
     the number of points evaluated.
@@ -1226,9 +1233,7 @@ def _bisect_profile_ends(profiles: dict, threshold: float, cost_of_points, *, ro
             for t_in, t_out in brackets:
                 if abs(t_out - t_in) > width:
                     t = 0.5 * (t_in + t_out)
-                    point = np.asarray(prof[t_in][1], dtype=float).copy()
-                    point[i] = t
-                    todo.append((i, t, point))
+                    todo += [(i, t, g) for g in _profile_guesses(z, cov, i, t, prof[t_in][1])]
         if not todo:
             break
         costs = cost_of_points(np.stack([g for _, _, g in todo]))
