@@ -1009,7 +1009,8 @@ def identify(
     inflation = np.maximum(1.0, chi2_rec / dof_rec)
     var_cost = np.sum(4.0 * np.maximum(chi2_rec, dof_rec) / (n_cov + 1) / inflation**2)
     var_cost += 2.0 * n_data / noise.sigma_dof
-    threshold = CHI2_1_95 + 1.645 * math.sqrt(2.0 * var_cost)
+    noise_sd = math.sqrt(2.0 * var_cost)  # of a difference of two costs
+    threshold = CHI2_1_95 + 1.645 * noise_sd
     profiles, cost_opt = _profile_scan(problem, z, cov, y0_cov, cost_of)
 
     def profile_costs(points):
@@ -1025,9 +1026,9 @@ def identify(
         rough = float(np.sqrt(np.mean(profile_costs(np.clip(jitter, -Z_END, Z_END)) ** 2)))
         say(
             f"  profile roughness: Δcost rms {rough:.1f} within 1–2 % of the optimum "
-            f"(Monte Carlo alone: {math.sqrt(2.0 * var_cost):.1f})"
+            f"(Monte Carlo alone: {noise_sd:.1f})"
         )
-        threshold = CHI2_1_95 + 1.645 * max(math.sqrt(2.0 * var_cost), rough)
+        threshold = CHI2_1_95 + 1.645 * max(noise_sd, rough)
 
     def bisect_ends():
         n = _bisect_profile_ends(
@@ -1055,12 +1056,9 @@ def identify(
         ends = _polish_profile(
             lambda pts: _residuals(problem, pts), starts, [i for i, _ in todo], steps
         )
-        per = _evaluate(problem, ends, y0_cov)
-        for (i, t), zk, per_k in zip(todo, ends, per, strict=True):
+        for (i, t), zk, dc in zip(todo, ends, profile_costs(ends), strict=True):
             polished.add((i, t))
-            dc = cost_of(per_k, zk) - cost_opt
-            if dc < profiles[i][t][0]:
-                profiles[i][t] = (dc, zk)
+            _keep_lower(profiles[i], t, float(dc), zk)
         bisect_ends()  # a polished value that fell inside leaves a wide bracket behind it
     for i, prof in profiles.items():
         z_lo[i], z_hi[i] = _profile_interval(prof, threshold)[0]
@@ -1181,8 +1179,7 @@ def _profile_scan(problem: _Problem, z, cov, y0, cost_of) -> tuple[dict, float]:
     profiles: dict[int, dict[float, tuple]] = {}
     for (i, t), c, zk in zip(owners, cost[1:], zs[1:], strict=True):
         prof = profiles.setdefault(i, {float(z[i]): (0.0, zs[0])})
-        if t not in prof or c - cost[0] < prof[t][0]:
-            prof[t] = (float(c - cost[0]), zk)
+        _keep_lower(prof, t, float(c - cost[0]), zk)
     return profiles, float(cost[0])
 
 
@@ -1239,9 +1236,14 @@ def _bisect_profile_ends(
         costs = cost_of_points(np.stack([g for _, _, g in todo]))
         n_points += len(todo)
         for (i, t, g), c in zip(todo, costs, strict=True):
-            if t not in profiles[i] or c < profiles[i][t][0]:
-                profiles[i][t] = (float(c), g)
+            _keep_lower(profiles[i], t, float(c), g)
     return n_points
+
+
+def _keep_lower(profile: dict, t: float, dcost: float, z) -> None:
+    """Record ``(dcost, z)`` as the profile's value at ``t`` unless a lower one stands."""
+    if t not in profile or dcost < profile[t][0]:
+        profile[t] = (dcost, z)
 
 
 def _profile_interval(profile: dict[float, tuple], threshold: float):
