@@ -372,7 +372,7 @@ def diagnose(files, effects, seed, quick_fit, iterations, output, plot_dir, quie
             param_hint="--effects",
         )
     recordings = [read_recording(f) for f in files]
-    fit_options = (FitOptions.quick if quick_fit else FitOptions)(seed=seed)
+    fit_options = (FitOptions.quick if quick_fit else FitOptions.optimum_only)(seed=seed)
     options = DiagnoseOptions(effects=names, fit=fit_options, iterations=iterations)
     diag = run(recordings, options, progress=_progress(quiet))
     _emit(

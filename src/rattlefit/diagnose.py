@@ -87,7 +87,8 @@ class DiagnoseOptions:
 
     effects : names of the effects to try (:data:`rattlefit.effects.EFFECTS`).
     fit : options of the identification that the diagnosis starts from (its seed seeds the
-        diagnosis too).
+        diagnosis too); by default :meth:`FitOptions.optimum_only`, since the diagnosis uses
+        the optimum and its noise model, not the intervals.
     iterations : Gauss–Newton iterations per effect.
     n_final : realisations behind each final χ² (default: the fit's covariance count).
     significance : family-wise level: an effect counts as supported when its F-test p is
@@ -95,7 +96,7 @@ class DiagnoseOptions:
     """
 
     effects: tuple[str, ...] = tuple(EFFECTS)
-    fit: FitOptions = dataclasses.field(default_factory=FitOptions)
+    fit: FitOptions = dataclasses.field(default_factory=FitOptions.optimum_only)
     iterations: int = 3
     n_final: int | None = None
     significance: float = 0.01
