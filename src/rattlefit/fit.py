@@ -1112,7 +1112,6 @@ def identify(
         )
         z = np.asarray(z_min, dtype=float)
         recentred += 1
-    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     corr = cov / np.outer(np.maximum(sd, 1e-300), np.maximum(sd, 1e-300))
     for i, prof in profiles.items():
         z_lo[i], z_hi[i] = _profile_interval(prof, threshold)[0]
