@@ -7,10 +7,11 @@ fit called `a` identified. Issue 3's check: truth inside the interval in ≥ 90 
 `a` within 20 % where reported identified.
 
     python benchmarks/coverage.py [--cases 10] [--seed 0] [--json out.json] [--only K ...]
-                                  [--rtol R] [--dither D]
+                                  [--rtol R] [--dither D] [--set FIELD=JSON ...]
 
 `--rtol` and `--dither` replace those `FitOptions` fields (the defaults otherwise), to measure
-what a cheaper tolerance or another dither does to coverage.
+what a cheaper tolerance or another dither does to coverage; `--set` replaces any other field
+(`--set profile_roughness=true`), its value read as JSON.
 
 Each case costs one identification (100–450 s on 2 cores), so the default sample of 10 takes
 ~35 minutes. Seeds are printed; every case is reproducible.
@@ -19,6 +20,7 @@ Each case costs one identification (100–450 s on 2 cores), so the default samp
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import json
 import os
@@ -55,8 +57,26 @@ def main() -> None:
     )
     ap.add_argument("--rtol", type=float, help="FitOptions.rtol (default: FitOptions')")
     ap.add_argument("--dither", type=float, help="FitOptions.dither (default: FitOptions')")
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="FIELD=JSON",
+        help="replace a FitOptions field, e.g. profile_roughness=true (repeatable)",
+    )
     args = ap.parse_args()
     overrides = {k: getattr(args, k) for k in ("rtol", "dither") if getattr(args, k) is not None}
+    fields = {f.name for f in dataclasses.fields(FitOptions)}
+    for item in args.set:
+        name, sep, value = item.partition("=")
+        if not sep or name not in fields or name == "seed":
+            ap.error(
+                f"--set {item!r}: expected FIELD=JSON with FIELD a FitOptions field other than seed"
+            )
+        try:
+            overrides[name] = json.loads(value)
+        except json.JSONDecodeError as exc:
+            ap.error(f"--set {item!r}: the value is not JSON ({exc})")
     print(
         f"{rf.use_cpu_cores()} JAX device(s); seed {args.seed}; FitOptions overrides {overrides}",
         flush=True,
