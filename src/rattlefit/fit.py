@@ -1055,7 +1055,7 @@ def identify(
         var_cost = np.sum(4.0 * np.maximum(chi2_rec, dof_rec) / (n_cov + 1) / inflation**2)
         var_cost += 2.0 * n_data / noise.sigma_dof
         noise_sd = math.sqrt(2.0 * var_cost)  # of a difference of two costs
-        threshold = CHI2_1_95 + 1.645 * noise_sd
+        threshold = _profile_threshold(noise_sd)
         profiles, cost_opt = _profile_scan(problem, z, cov, y0_cov, cost_of)
 
         if options.profile_roughness:
@@ -1066,12 +1066,11 @@ def identify(
             free = [i for i, s in enumerate(specs) if s.log_sd is None]
             jitter = np.stack([z + h * np.eye(p)[i] for i in free for h in PROFILE_JITTER])
             jitter_costs = profile_costs(np.clip(jitter, -Z_END, Z_END), cost_opt)
-            rough = float(np.sqrt(np.mean(jitter_costs**2)))
+            threshold = _profile_threshold(noise_sd, jitter_costs)
             say(
-                f"  profile roughness: Δcost rms {rough:.1f} within 1–2 % of the optimum "
-                f"(Monte Carlo alone: {noise_sd:.1f})"
+                f"  profile roughness: Δcost rms {np.sqrt(np.mean(jitter_costs**2)):.1f} "
+                f"within 1–2 % of the optimum (Monte Carlo alone: {noise_sd:.1f})"
             )
-            threshold = CHI2_1_95 + 1.645 * max(noise_sd, rough)
 
         bisect_ends(profiles, threshold, z, cov, cost_opt)
         # the scanned values just outside each interval decide its ends: re-optimise the
@@ -1198,6 +1197,21 @@ PROFILE_RESOLUTION = 0.15
 PROFILE_MIN_STEP = 0.01
 #: Steps (in z) from the optimum at which ``FitOptions.profile_roughness`` measures the cost.
 PROFILE_JITTER = (-0.02, -0.01, 0.01, 0.02)
+
+
+def _profile_threshold(noise_sd: float, jitter_costs: np.ndarray | None = None) -> float:
+    """The Δcost below which a profile value is inside the 95 % interval.
+
+    χ²₁'s 95 % quantile, plus a one-sided 95 % allowance (1.645 standard deviations) for the
+    noise of a difference of two costs: ``noise_sd``, the analytic Monte Carlo part, or where
+    ``jitter_costs`` are given (the Δcost of points a step of 1–2 % from the optimum, where the
+    profile's smooth part is negligible), their root mean square if that is larger — the
+    measured noise of a Δcost, chaotic roughness included.
+    """
+    sd = noise_sd
+    if jitter_costs is not None and len(jitter_costs):
+        sd = max(sd, float(np.sqrt(np.mean(np.square(jitter_costs)))))
+    return CHI2_1_95 + 1.645 * sd
 
 
 def _profile_scan(problem: _Problem, z, cov, y0, cost_of) -> tuple[dict, float]:
