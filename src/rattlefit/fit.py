@@ -190,13 +190,13 @@ class FitOptions:
         synthetic file of tests/test_fit.py the cost varies by 17.8 rms within 1–2 % of the
         optimum against 3.6 for Monte Carlo noise alone. On by default since session 17,
         measured (seed 0): the coverage study's 10 cases went from 28/30 to 29/30 intervals
-        holding the truth (the flagged pair I dry 65.4 mm case's ``T_b`` now holds it), most
-        intervals unchanged because their roughness is below the Monte Carlo allowance; on the
-        synthetic backlash sweep (pair II, 10 % at 8 Hz) the joint ``T_b`` interval
-        [0.0177, 0.0273] N m (0.43 in log) is narrower than either single recording's
-        (0.52 at 65.4 mm, 1.57 at 65.0 mm), which it was not without it (joint 0.37, 65.4 mm
-        0.29). The cost: wider intervals where the profile is rough (the mild file's ``T_b``
-        [0.0062, 0.0298] N m, not identified, against [0.0171, 0.0287]), and 12 simulations
+        holding the truth (the flagged pair I dry 65.4 mm case's ``T_b`` now holds it), four
+        cases' intervals unchanged because their roughness is below the Monte Carlo allowance;
+        on the synthetic backlash sweep (pair II, 10 % at 8 Hz) the joint ``T_b`` interval
+        [0.0177, 0.0273] N m (0.43 in log) is narrower than either single recording's (0.52
+        at 65.4 mm, 1.57 at 65.0 mm), which it was not without it (joint 0.37, 65.4 mm 0.29).
+        The cost: wider intervals where the profile is rough (the mild file's ``T_b``
+        [0.0062, 0.0298] N m, not identified, against [0.0171, 0.0287]), and 4 simulations
         per free parameter per covariance realisation (a few per cent of a fit).
     recentre_rounds : how many times the Laplace and profile stages may start again from
         the lowest point of the profiles, when that lies below the optimum's cost by more
