@@ -102,9 +102,9 @@ def test_dry_flanks_are_not_given_a_film():
 
 @pytest.mark.skipif(
     not os.environ.get("RATTLEFIT_SLOW"),
-    reason="three fits, 23–36 min on one JAX device; run with RATTLEFIT_SLOW=1. Session 17 "
-    "(seed 0, one device, profile_roughness now the default): joint T_b [0.0177, 0.0273] N m "
-    "(0.43 in log) against the singles' 0.52 (65.4 mm) and 1.57 (65.0 mm), measured in scripts",
+    reason="three fits, 21–36 min on one JAX device; run with RATTLEFIT_SLOW=1. Session 17 "
+    "(seed 0, profile_roughness now the default): passed in 1248 s, joint T_b [0.0177, 0.0273] "
+    "N m (0.43 in log) against the singles' 0.52 (65.4 mm) and 1.57 (65.0 mm)",
 )
 def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
     # Session 17 (seed 0, AVX2 cap, one device; the defaults with profile_roughness, then
