@@ -8,10 +8,12 @@ fit called `a` identified. Issue 3's check: truth inside the interval in ≥ 90 
 
     python benchmarks/coverage.py [--cases 10] [--seed 0] [--json out.json] [--only K ...]
                                   [--rtol R] [--dither D] [--set FIELD=JSON ...]
+                                  [--prior NAME=CENTER:LOG_SD ...]
 
 `--rtol` and `--dither` replace those `FitOptions` fields (the defaults otherwise), to measure
 what a cheaper tolerance or another dither does to coverage; `--set` replaces any other field
-(`--set profile_roughness=true`), its value read as JSON.
+(`--set profile_roughness=true`), its value read as JSON; `--prior min_film=2e-6:0.1` replaces
+a nuisance's prior (what a rig that knows h_min would give).
 
 Each case costs one identification (100–450 s on 2 cores), so the default sample of 10 takes
 ~35 minutes. Seeds are printed; every case is reproducible.
@@ -29,7 +31,7 @@ import time
 import numpy as np
 
 import rattlefit as rf
-from rattlefit.fit import FitOptions, identify
+from rattlefit.fit import FitOptions, identify, parse_prior
 from rattlefit.oil import dynamic_viscosity
 from rattlefit.recording import OperatingPoint
 from rattlefit.synthetic import synthesize
@@ -64,8 +66,20 @@ def main() -> None:
         metavar="FIELD=JSON",
         help="replace a FitOptions field, e.g. profile_roughness=true (repeatable)",
     )
+    ap.add_argument(
+        "--prior",
+        action="append",
+        default=[],
+        metavar="NAME=CENTER:LOG_SD",
+        help="replace a nuisance's prior (rattlefit.fit.parse_prior), e.g. min_film=2e-6:0.1",
+    )
     args = ap.parse_args()
     overrides = {k: getattr(args, k) for k in ("rtol", "dither") if getattr(args, k) is not None}
+    if args.prior:
+        try:
+            overrides["priors"] = dict(parse_prior(text) for text in args.prior)
+        except rf.RattlefitError as exc:
+            ap.error(f"--prior: {exc}")
     fields = {f.name for f in dataclasses.fields(FitOptions)}
     for item in args.set:
         name, sep, value = item.partition("=")
@@ -145,7 +159,12 @@ def main() -> None:
     if args.json:  # written whole, then renamed: never a half-written file
         tmp = f"{args.json}.tmp"
         with open(tmp, "w") as fh:
-            json.dump({"options": overrides, "seed": args.seed, "cases": rows}, fh, indent=2)
+            json.dump(
+                {"options": overrides, "seed": args.seed, "cases": rows},
+                fh,
+                indent=2,
+                default=dataclasses.asdict,  # the priors' specs
+            )
         os.replace(tmp, args.json)
 
 

@@ -136,11 +136,18 @@ def test_identify_writes_json_and_plots(tmp_path):
             str(out),
             "--plot",
             str(plots),
+            "--prior",
+            "min_film=3e-6:0.1",
         ],
     )
     assert result.exit_code == 0, result.output
     assert "drag_torque" in result.output and "95 % interval" in result.output
     doc = json.loads(out.read_text())
+    # the prior given is the one fitted with, and recorded: h_min known to 10 % keeps the
+    # interval within the prior's reach (the default prior's 95 % factor is 15.6)
+    assert doc["fit"]["options"]["priors"]["min_film"]["log_sd"] == 0.1
+    h = doc["parameters"]["min_film"]
+    assert 3e-6 * np.exp(-0.45) < h["lower"] < h["upper"] < 3e-6 * np.exp(0.45), h
     for name, unit in (("a", "m"), ("drag_torque", "N m"), ("viscosity", "Pa s")):
         p = doc["parameters"][name]
         assert p["unit"] == unit
@@ -159,6 +166,25 @@ def test_identify_bad_file_is_one_clean_error(tmp_path):
     assert result.exit_code == 2
     assert str(bad) in result.output
     assert not (tmp_path / "r.json").exists()
+
+
+@pytest.mark.parametrize(
+    ("prior", "problem"),
+    [
+        ("h_min=2e-6:0.1", "not a nuisance parameter"),
+        ("min_film=2e-6", "expected NAME=CENTER:LOG_SD"),
+        ("min_film=1:0.1", "outside the range"),
+        ("viscosity_scale=1:0", "log_sd must be a positive number"),
+    ],
+)
+def test_identify_bad_prior_is_one_clean_error(tmp_path, prior, problem):
+    out = tmp_path / "r.json"
+    path = DATA / "pairII_boundary_65.6_20pct_16Hz.h5"
+    result = CliRunner().invoke(main, ["identify", str(path), "--prior", prior, "-o", str(out)])
+    assert result.exit_code == 2
+    assert "--prior" in result.output and problem in result.output, result.output
+    assert "Traceback" not in result.output
+    assert not out.exists()
 
 
 def test_sample_refuses_a_foreign_backend_and_keeps_it(tmp_path):

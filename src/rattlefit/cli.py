@@ -77,6 +77,33 @@ def _output_options(what: str, plots: str):
     return decorate
 
 
+def _prior_option(func):
+    """The ``--prior NAME=CENTER:LOG_SD`` option (repeatable) of the fitting commands."""
+    return click.option(
+        "--prior",
+        "priors",
+        multiple=True,
+        metavar="NAME=CENTER:LOG_SD",
+        help="Replace a nuisance's log-normal prior (repeatable): NAME is viscosity_scale, "
+        "stiffness_scale or min_film (m), CENTER its median, LOG_SD the sd of its natural "
+        "log, e.g. --prior min_film=2e-6:0.1 when h_min is known to about 10 %.",
+    )(func)
+
+
+def _priors(texts) -> dict:
+    """``--prior`` values → ``FitOptions.priors``; a bad one is a usage error naming it."""
+    from .fit import parse_prior
+
+    priors = {}
+    for text in texts:
+        try:
+            name, spec = parse_prior(text)
+        except RattlefitError as exc:
+            raise click.BadParameter(str(exc), param_hint="--prior") from None
+        priors[name] = spec
+    return priors
+
+
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="rattlefit")
 def main() -> None:
@@ -264,9 +291,12 @@ def simulate(**o) -> None:
     is_flag=True,
     help="A rough first look, several times faster, with wider intervals (FitOptions.quick).",
 )
+@_prior_option
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
 @_clean_errors
-def identify(files, output, plot_dir, seed, realisations, starts, drive, quick, quiet) -> None:
+def identify(
+    files, output, plot_dir, seed, realisations, starts, drive, quick, priors, quiet
+) -> None:
     """Fit a, T_b and the viscosity to one recording, or jointly to several (one pair and
     lubrication, e.g. a backlash sweep)."""
     from .fit import FitOptions
@@ -277,7 +307,9 @@ def identify(files, output, plot_dir, seed, realisations, starts, drive, quick, 
     recordings = [read_recording(f) for f in files]
     given = {"n_realisations": realisations, "n_starts": starts}
     make = FitOptions.quick if quick else FitOptions
-    options = make(seed=seed, drive=drive, **{k: v for k, v in given.items() if v})
+    options = make(
+        seed=seed, drive=drive, priors=_priors(priors), **{k: v for k, v in given.items() if v}
+    )
     result = run(recordings, options, progress=_progress(quiet))
     _emit(
         format_table(result),
@@ -306,9 +338,12 @@ def identify(files, output, plot_dir, seed, realisations, starts, drive, quick, 
 @_output_options(
     "the credible intervals and diagnostics", "the trace, pairwise-marginal and predictive plots"
 )
+@_prior_option
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
 @_clean_errors
-def sample(files, backend, steps, walkers, burn_in, seed, quick_fit, output, plot_dir, quiet):
+def sample(
+    files, backend, steps, walkers, burn_in, seed, quick_fit, output, plot_dir, priors, quiet
+):
     """Sample the Bayesian posterior of a, T_b, the viscosity and the nuisances (emcee),
     starting from an identification of the same files."""
     from .fit import FitOptions
@@ -320,7 +355,7 @@ def sample(files, backend, steps, walkers, burn_in, seed, quick_fit, output, plo
     if burn_in is not None and burn_in >= steps:
         raise click.BadParameter(f"must be below --steps ({steps})", param_hint="--burn-in")
     recordings = [read_recording(f) for f in files]
-    fit_options = (FitOptions.quick if quick_fit else FitOptions)(seed=seed)
+    fit_options = (FitOptions.quick if quick_fit else FitOptions)(seed=seed, priors=_priors(priors))
     options = SampleOptions(
         n_walkers=walkers, n_steps=steps, burn_in=burn_in, seed=seed, fit=fit_options
     )
@@ -351,9 +386,10 @@ def sample(files, backend, steps, walkers, burn_in, seed, quick_fit, output, plo
     help="Gauss–Newton iterations per effect.",
 )
 @_output_options("the diagnosis", "the band residuals with and without each effect")
+@_prior_option
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
 @_clean_errors
-def diagnose(files, effects, seed, quick_fit, iterations, output, plot_dir, quiet):
+def diagnose(files, effects, seed, quick_fit, iterations, output, plot_dir, priors, quiet):
     """Where the model misses the recordings, which unmodelled effect explains it, and how
     much of the misfit it removes (each effect fitted on top of an identification)."""
     from .diagnose import DiagnoseOptions
@@ -372,7 +408,8 @@ def diagnose(files, effects, seed, quick_fit, iterations, output, plot_dir, quie
             param_hint="--effects",
         )
     recordings = [read_recording(f) for f in files]
-    fit_options = (FitOptions.quick if quick_fit else FitOptions.optimum_only)(seed=seed)
+    make = FitOptions.quick if quick_fit else FitOptions.optimum_only
+    fit_options = make(seed=seed, priors=_priors(priors))
     options = DiagnoseOptions(effects=names, fit=fit_options, iterations=iterations)
     diag = run(recordings, options, progress=_progress(quiet))
     _emit(

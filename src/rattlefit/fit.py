@@ -303,6 +303,18 @@ class FitOptions:
         counts = ("profile_rounds", "profile_bisections", "recentre_rounds")
         if any(getattr(self, k) < 0 for k in counts):
             raise RattlefitError(f"FitOptions.{', '.join(counts)} must be ≥ 0")
+        known = {"a", "drag_torque", *NUISANCES}
+        for name, spec in self.priors.items():
+            # a misspelt name would otherwise replace nothing, silently
+            if not (name in known or name.startswith("backlash[")):
+                raise RattlefitError(
+                    f"FitOptions.priors: unknown parameter {name!r}; expected one of "
+                    f"{', '.join(sorted(known))} or backlash[k]"
+                )
+            if not isinstance(spec, ParameterSpec) or spec.name != name:
+                raise RattlefitError(
+                    f"FitOptions.priors[{name!r}]: expected a ParameterSpec named {name!r}"
+                )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -446,9 +458,7 @@ class FitResult:
                 "wall_time_s": self.wall_time,
                 "recordings": self.recordings,
                 "correlation": {"names": self.names, "matrix": self.correlation.tolist()},
-                "options": {
-                    k: v for k, v in dataclasses.asdict(self.options).items() if k != "priors"
-                },
+                "options": dataclasses.asdict(self.options),  # priors as their specs
             },
         }
 
@@ -776,6 +786,54 @@ def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec
             )
         )
     return tuple(priors.get(s.name, s) for s in specs)
+
+
+#: The nuisance parameters whose prior a caller may replace with :func:`nuisance_prior`.
+NUISANCES = ("viscosity_scale", "stiffness_scale", "min_film")
+
+
+def nuisance_prior(name: str, center: float, log_sd: float) -> ParameterSpec:
+    """The prior of nuisance ``name`` (one of :data:`NUISANCES`) replaced by a log-normal one
+    with median ``center`` (in the parameter's unit: ``min_film`` in m, the scales as
+    factors) and standard deviation ``log_sd`` in the natural log; the range is kept. Pass it
+    as ``FitOptions(priors={name: nuisance_prior(name, ...)})``.
+
+    What the rig knows besides the recording belongs here: ``h_min`` from the flanks'
+    roughness, for instance. In mild rattle the data pin the squeeze film's momentum sink,
+    which scales as a³/h_min², so a is known only as well as ``h_min`` is (the default prior's
+    95 % factor 15.6 becomes about 6 in a).
+    """
+    default = {s.name: s for s in default_specs([], {})}
+    if name not in NUISANCES:
+        raise RattlefitError(
+            f"prior {name!r}: not a nuisance parameter; expected one of {', '.join(NUISANCES)}"
+        )
+    spec = default[name]
+    if not (math.isfinite(center) and spec.lower < center < spec.upper):
+        raise RattlefitError(
+            f"prior {name}: centre {center:g} {spec.unit} is outside the range "
+            f"({spec.lower:g}, {spec.upper:g}) {spec.unit}"
+        )
+    if not (math.isfinite(log_sd) and log_sd > 0):
+        raise RattlefitError(f"prior {name}: log_sd must be a positive number, got {log_sd:g}")
+    return dataclasses.replace(spec, center=center, log_sd=log_sd)
+
+
+def parse_prior(text: str) -> tuple[str, ParameterSpec]:
+    """``"NAME=CENTER:LOG_SD"`` (e.g. ``"min_film=2e-6:0.1"``) → ``(name, spec)`` of
+    :func:`nuisance_prior`, for command lines."""
+    name, sep, rest = text.partition("=")
+    center, sep2, log_sd = rest.partition(":")
+    try:
+        if not (sep and sep2):
+            raise ValueError
+        values = float(center), float(log_sd)
+    except ValueError:
+        raise RattlefitError(
+            f"prior {text!r}: expected NAME=CENTER:LOG_SD, e.g. min_film=2e-6:0.1"
+        ) from None
+    name = name.strip()
+    return name, nuisance_prior(name, *values)
 
 
 def _build(
