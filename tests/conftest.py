@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import jax
@@ -13,6 +14,8 @@ import rattlefit as rf
 # pytest-xdist already runs one worker per core: keep each worker on one JAX device (starting
 # JAX here fixes that, so the CLI's use_cpu_cores() is a no-op under test).
 jax.devices()
+# the CLI keeps compiled programs in a cache under the home directory; tests leave it alone
+os.environ.setdefault("RATTLEFIT_CACHE_DIR", "off")
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "recordings"
 

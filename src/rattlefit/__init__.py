@@ -19,6 +19,7 @@ import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 
+from .compile_cache import use_compilation_cache  # noqa: E402
 from .drive import Drive  # noqa: E402
 from .errors import ParameterError, RattlefitError, RecordingError, SolverError  # noqa: E402
 from .geometry import GearGeometry, table2_pair  # noqa: E402
@@ -47,5 +48,6 @@ __all__ = [
     "simulate",
     "simulate_batch",
     "table2_pair",
+    "use_compilation_cache",
     "use_cpu_cores",
 ]

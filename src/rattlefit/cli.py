@@ -15,6 +15,7 @@ from pathlib import Path
 
 import click
 
+from .compile_cache import use_compilation_cache
 from .errors import RattlefitError
 from .parallel import use_cpu_cores
 
@@ -113,6 +114,8 @@ def main() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         use_cpu_cores()
+    # compiled programs kept on disk: a second run skips compilation ($RATTLEFIT_CACHE_DIR)
+    use_compilation_cache()
 
 
 @main.command()
