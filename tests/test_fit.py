@@ -20,6 +20,7 @@ from rattlefit.fit import (
     PROFILE_RESOLUTION,
     FitOptions,
     ParameterSpec,
+    _admit_rivals,
     _bisect_profile_ends,
     _debiased_information,
     _estimate,
@@ -29,6 +30,7 @@ from rattlefit.fit import (
     _profile_threshold,
     _threshold_crossing,
     identify,
+    nuisance_prior,
 )
 from rattlefit.recording import OperatingPoint, read_recording
 from rattlefit.synthetic import synthesize
@@ -413,6 +415,35 @@ def test_profile_interval_spans_values_below_the_threshold():
     prof[2.0] = (1.0, z)  # lowered (e.g. re-optimised): the upper end runs to the last value
     (lo, hi), brackets = _profile_interval(prof, 3.0)
     assert hi == 2.0 and brackets == [(-1.0, -2.0)]
+
+
+def test_a_prior_under_a_wrong_name_is_refused_not_ignored():
+    spec = nuisance_prior("min_film", 2e-6, 0.1)
+    assert (spec.center, spec.log_sd, spec.unit) == (2e-6, 0.1, "m")
+    assert FitOptions(priors={"min_film": spec}).priors["min_film"] is spec
+    with pytest.raises(rf.RattlefitError, match="unknown parameter 'h_min'"):
+        FitOptions(priors={"h_min": spec})
+    with pytest.raises(rf.RattlefitError, match="a ParameterSpec named 'viscosity_scale'"):
+        FitOptions(priors={"viscosity_scale": spec})
+    with pytest.raises(rf.RattlefitError, match="not a nuisance parameter"):
+        nuisance_prior("a", 1e-4, 0.1)
+
+
+def test_rivals_below_the_threshold_join_the_profiles_and_no_others():
+    # Δcost = t² along both free parameters, threshold 3: the intervals are ±√3 without
+    # rivals. A candidate at (2.5, −2.5) with Δcost 2 is inside the 95 % region (an optimum or
+    # not), so both intervals must reach it; one at (−2.8, 2.8) with Δcost 3.5 is outside and
+    # must change nothing, however close its cost in the fit was
+    ts = (-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0)
+    profiles = {i: {t: (t**2, np.full(2, t)) for t in ts} for i in (0, 1)}
+    inside, outside = np.array([2.5, -2.5]), np.array([-2.8, 2.8])
+    rivals = _admit_rivals(profiles, [inside, outside], [2.0, 3.5], 3.0)
+    assert len(rivals) == 1 and np.array_equal(rivals[0], inside)
+    (lo0, hi0), _ = _profile_interval(profiles[0], 3.0)
+    (lo1, hi1), _ = _profile_interval(profiles[1], 3.0)
+    assert hi0 == pytest.approx(2.5 + 0.5 / 7) and lo1 == pytest.approx(-2.5 - 0.5 / 7)
+    assert lo0 == pytest.approx(-1 - 2 / 3) and hi1 == pytest.approx(1 + 2 / 3)  # unmoved
+    assert -2.8 not in profiles[0] and 2.8 not in profiles[1]
 
 
 def test_profile_threshold_covers_the_truth_of_noisy_profiles():

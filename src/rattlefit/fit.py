@@ -153,9 +153,9 @@ class FitOptions:
     start_realisations : realisations per start in the screening; the best
         ``n_refine`` + :data:`SCREEN_EXTRA` starts are then re-evaluated with all
         ``n_realisations``. Two are enough to tell a basin (cost differences of hundreds).
-    n_refine : how many of the best starts are refined. Every refined optimum whose cost is
-        within the statistic's own fluctuation scale √(2·dof) of the best is an equally good
-        explanation of the data, and the reported intervals span all of them.
+    n_refine : how many of the best starts are refined. Every other refined optimum (and the
+        best start) whose cost in the profile likelihood lies below the profile threshold is
+        inside the 95 % region, and the reported intervals span it (:func:`_admit_rivals`).
     max_iterations : Levenberg–Marquardt steps per start.
     sigma_floor : lower bound on a band's standard deviation, log10 units.
     floor_uncertainty : standard uncertainty (log10) of the analytic white quantisation floor
@@ -1029,14 +1029,11 @@ def identify(
     z = candidates[rank[0]]
     n_iter = sum(o[1] for o in optima)
     converged = all(o[2] for o in optima)
-    tolerance = math.sqrt(2.0 * int(np.prod(problem.data.shape)))
-    rivals = [
-        candidates[i]
-        for i in rank[1:]
-        if final[i] - final[rank[0]] < tolerance and np.max(np.abs(candidates[i] - z)) > 0.05
-    ]
-    if rivals:
-        say(f"{len(rivals)} other optimum(s) within Δcost < {tolerance:.1f}: intervals span them")
+    # the other candidates close enough in this cost to be inside the 95 % region are tested
+    # against the profile threshold, in the profiles' own cost, once it is known (below)
+    tolerance = RIVAL_SCREEN * math.sqrt(2.0 * int(np.prod(problem.data.shape)))
+    # (the best among them too: after a re-centring it is another candidate)
+    contenders = [candidates[i] for i in rank if final[i] - final[rank[0]] < tolerance]
 
     # the Laplace stage uses more realisations than the fit, released from fresh states
     y0_cov = _release_states(problem, z, options.n_covariance_realisations, rng)
@@ -1102,13 +1099,7 @@ def identify(
         chi2, cov, mean = laplace(z)
         say(f"χ² = {chi2:.1f} on {dof} dof (band correlations included)")
         sd = np.sqrt(np.clip(np.diag(cov), 0, None))
-        # each rival optimum widens the intervals to cover its own 95 % interval, taken to be
-        # as wide as the optimum's: a Laplace stage of its own cost 13 × 24 simulations (a
-        # sixth of a fit), and it moves only the nuisances' ends (the free parameters' come
-        # from the profiles below, which keep every rival inside)
         z_lo, z_hi = z - Z95 * sd, z + Z95 * sd
-        for zr in rivals:
-            z_lo, z_hi = np.minimum(z_lo, zr - Z95 * sd), np.maximum(z_hi, zr + Z95 * sd)
 
         # the Laplace interval is local and Gaussian: the free parameters' intervals come
         # from a scan of their cost profiles over the whole range (a → 0 is dry flanks)
@@ -1126,6 +1117,10 @@ def identify(
         threshold = _profile_threshold(noise_sd)
         profiles, cost_opt = _profile_scan(problem, z, cov, y0_cov, cost_of)
 
+        # the other candidates (refined optima, the best start) distinct from this optimum,
+        # and with the roughness allowance the points 1–2 % away: one batched evaluation
+        others = [zr for zr in contenders if np.max(np.abs(zr - z)) > SCAN_SAME]
+        jitter = np.empty((0, p))
         if options.profile_roughness:
             # the cost a step of 1–2 % away, where its smooth part is negligible: its spread
             # is the noise of a profile's Δcost (Monte Carlo and the chaotic roughness of the
@@ -1133,12 +1128,27 @@ def identify(
             # only in part
             free = [i for i, s in enumerate(specs) if s.log_sd is None]
             jitter = np.stack([z + h * np.eye(p)[i] for i in free for h in PROFILE_JITTER])
-            jitter_costs = profile_costs(np.clip(jitter, -Z_END, Z_END), cost_opt)
+            jitter = np.clip(jitter, -Z_END, Z_END)
+        extra = np.concatenate([jitter, *(zr[None] for zr in others)])
+        extra_costs = profile_costs(extra, cost_opt) if len(extra) else np.empty(0)
+        if len(jitter):
+            jitter_costs = extra_costs[: len(jitter)]
             threshold = _profile_threshold(noise_sd, jitter_costs)
             say(
                 f"  profile roughness: Δcost rms {np.sqrt(np.mean(jitter_costs**2)):.1f} "
                 f"within 1–2 % of the optimum (Monte Carlo alone: {noise_sd:.1f})"
             )
+        rivals = _admit_rivals(profiles, others, extra_costs[len(jitter) :], threshold)
+        if others:
+            say(
+                f"  {len(rivals)} of {len(others)} other candidate(s) inside the 95 % region "
+                f"(Δcost {', '.join(f'{c:.1f}' for c in extra_costs[len(jitter) :])} against "
+                f"{threshold:.1f})" + (": the intervals span them" if rivals else "")
+            )
+        for zr in rivals:
+            # a rival's own interval is taken to be as wide as the optimum's: this moves only
+            # the nuisances' ends (the free parameters' profiles now hold the rival)
+            z_lo, z_hi = np.minimum(z_lo, zr - Z95 * sd), np.maximum(z_hi, zr + Z95 * sd)
 
         bisect_ends(profiles, threshold, z, cov, cost_opt)
         # the scanned values just outside each interval decide its ends: re-optimise the
@@ -1182,10 +1192,6 @@ def identify(
     corr = cov / np.outer(np.maximum(sd, 1e-300), np.maximum(sd, 1e-300))
     for i, prof in profiles.items():
         z_lo[i], z_hi[i] = _profile_interval(prof, threshold)[0]
-        if rivals:
-            # rival optima are equally good explanations: keep them inside
-            z_lo[i] = min(z_lo[i], *(zr[i] for zr in rivals))
-            z_hi[i] = max(z_hi[i], *(zr[i] for zr in rivals))
 
     estimates = {}
     for i, s in enumerate(specs):
@@ -1245,6 +1251,10 @@ def identify(
     )
 
 
+#: Candidates (refined optima, the best start) whose fit cost is within this many √(2·n_data)
+#: (the statistic's own fluctuation scale) of the best are tested against the profile
+#: threshold (:func:`_admit_rivals`); the rest are far outside the 95 % region.
+RIVAL_SCREEN = 2.0
 #: Where the starting points of (a, T_b) are spread (log-uniformly), m and N m.
 START_RANGES = ((5e-6, 2e-3), (5e-3, 0.2))
 #: Starts re-evaluated with all realisations beyond the ``n_refine`` that are refined.
@@ -1380,6 +1390,28 @@ def _bisect_profile_ends(
         for (i, t, g), c in zip(todo, costs, strict=True):
             _keep_lower(profiles[i], t, float(c), g)
     return n_points
+
+
+def _admit_rivals(profiles: dict, others, dcosts, threshold: float) -> list[np.ndarray]:
+    """The candidates among ``others`` whose Δcost (``dcosts``, in the profiles' cost, above
+    the optimum's) lies below the profile ``threshold``; each is entered into every free
+    parameter's profile at its own value, in place, so that the intervals, their bisection and
+    the check for a lower point (:func:`_lower_profile_point`) all see it.
+
+    A point below the threshold is inside the 95 % confidence region whatever it is: another
+    optimum, or a Levenberg–Marquardt run stopped at its step limit. One above it is not,
+    however close its cost in the fit (fewer realisations, the spread held fixed): before
+    session 18 every candidate within √(2·n_data) of the best in the fit's cost was spanned,
+    and on a joint fit of a synthetic backlash sweep an unconverged iterate widened ``a`` and
+    the viscosity beyond the single recordings' intervals.
+    """
+    rivals = []
+    for zr, dc in zip(others, dcosts, strict=True):
+        if dc < threshold:
+            rivals.append(np.asarray(zr, dtype=float))
+            for i, prof in profiles.items():
+                _keep_lower(prof, float(zr[i]), float(dc), rivals[-1])
+    return rivals
 
 
 def _lower_profile_point(profiles: dict, allowance: float):
