@@ -105,8 +105,9 @@ def test_dry_flanks_are_not_given_a_film():
 @pytest.mark.skipif(
     not os.environ.get("RATTLEFIT_SLOW"),
     reason="three fits, 20–36 min on one JAX device; run with RATTLEFIT_SLOW=1. Session 18 "
-    "(seed 0, one device, the fits run as a script): joint T_b [0.0178, 0.0283] N m (0.47 in "
-    "log) against the singles' 1.43 (65.0 mm) and 1.32 (65.4 mm), the truth inside all three",
+    "(seed 0, one device): passed in 1633 s beside other fits; joint T_b [0.0178, 0.0283] N m "
+    "(0.47 in log) against the singles' 1.43 (65.0 mm) and 1.32 (65.4 mm), the truth inside all "
+    "three",
 )
 def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
     # Session 18 (seed 0, AVX2 cap, one device; rival candidates tested against the profile
