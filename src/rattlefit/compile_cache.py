@@ -1,9 +1,10 @@
 """A persistent cache of compiled programs: the second run of a command skips compilation.
 
 Every identification compiles the simulator, its batched evaluation and the
-Levenberg–Marquardt loop before it simulates anything; in a fresh process that is a fixed cost
-of each ``rattlefit identify`` (measured: the first batched evaluation of a fit takes 9.1 s in
-a fresh process and 2.9 s with the program read back from the cache). JAX can keep compiled
+Levenberg–Marquardt loop before it simulates anything, and hundreds of small programs for its
+array operations; in a fresh process that is a fixed cost of each ``rattlefit identify``
+(measured: the first batched evaluation of a fit takes 9.1 s in a fresh process and 2.9 s with
+the program read back from the cache; a quick identify of a 3 s file 33 s cold, 19 s warm). JAX can keep compiled
 programs on disk and reuse them in a later process whose code, JAX version, device count and
 XLA flags (the instruction-set cap of :mod:`rattlefit.reproducibility` included) are the same.
 A reused program is the program compiled before, so results do not change (measured: the same
@@ -25,8 +26,11 @@ import jax
 
 #: The environment variable naming the cache directory ("off" or empty: no cache).
 CACHE_ENV = "RATTLEFIT_CACHE_DIR"
-#: Programs that took less than this to compile (s) are not worth a file.
-MIN_COMPILE_TIME = 0.5
+#: Programs that took less than this to compile (s) are not kept. Zero: the hundreds of small
+#: programs that the fit's eager array operations compile (about 0.05 s each) add up to more
+#: than the two large ones (measured on a quick identify of a 3 s file on 2 cores: 33.2 s cold,
+#: 19.0 s warm with every program kept, 30.1 s with only those above 0.5 s; 326 files, 1.9 MB).
+MIN_COMPILE_TIME = 0.0
 
 
 def default_cache_dir() -> Path:
