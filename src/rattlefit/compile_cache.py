@@ -4,11 +4,11 @@ Every identification compiles the simulator, its batched evaluation and the
 Levenberg–Marquardt loop before it simulates anything, and hundreds of small programs for its
 array operations; in a fresh process that is a fixed cost of each ``rattlefit identify``
 (measured: the first batched evaluation of a fit takes 9.1 s in a fresh process and 2.9 s with
-the program read back from the cache; a quick identify of a 3 s file 33 s cold, 19 s warm). JAX can keep compiled
-programs on disk and reuse them in a later process whose code, JAX version, device count and
-XLA flags (the instruction-set cap of :mod:`rattlefit.reproducibility` included) are the same.
-A reused program is the program compiled before, so results do not change (measured: the same
-features to the last bit).
+the program read back from the cache; a quick identify of a 3 s file 33 s cold, 19 s warm).
+JAX can keep compiled programs on disk and reuse them in a later process whose code, JAX
+version, device count and XLA flags (the instruction-set cap of
+:mod:`rattlefit.reproducibility` included) are the same. A reused program is the program
+compiled before, so results do not change (measured: the same features to the last bit).
 
 The command line turns the cache on (:func:`use_compilation_cache`); in Python call it before
 the first fit. ``RATTLEFIT_CACHE_DIR`` chooses the directory, ``off`` (or empty) disables it;
