@@ -1400,10 +1400,12 @@ def _admit_rivals(profiles: dict, others, dcosts, threshold: float) -> list[np.n
 
     A point below the threshold is inside the 95 % confidence region whatever it is: another
     optimum, or a Levenberg–Marquardt run stopped at its step limit. One above it is not,
-    however close its cost in the fit (fewer realisations, the spread held fixed): before
-    session 18 every candidate within √(2·n_data) of the best in the fit's cost was spanned,
-    and on a joint fit of a synthetic backlash sweep an unconverged iterate widened ``a`` and
-    the viscosity beyond the single recordings' intervals.
+    however close its cost in the fit (fewer realisations, the spread held fixed). Before
+    session 18 every candidate within √(2·n_data) of the best in the fit's cost was spanned;
+    in session 17, on a joint fit of a synthetic backlash sweep, an unconverged iterate so
+    widened ``a`` and the viscosity beyond the single recordings' intervals. On the coverage
+    study's 10 cases the two rules give the same coverage (benchmarks/README, "Rival
+    candidates").
     """
     rivals = []
     for zr, dc in zip(others, dcosts, strict=True):
