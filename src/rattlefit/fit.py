@@ -303,7 +303,7 @@ class FitOptions:
         counts = ("profile_rounds", "profile_bisections", "recentre_rounds")
         if any(getattr(self, k) < 0 for k in counts):
             raise RattlefitError(f"FitOptions.{', '.join(counts)} must be ≥ 0")
-        known = {"a", "drag_torque", *NUISANCES}
+        known = {s.name for s in default_specs([], {})}  # every name but the backlashes
         for name, spec in self.priors.items():
             # a misspelt name would otherwise replace nothing, silently
             if not (name in known or name.startswith("backlash[")):
@@ -788,8 +788,9 @@ def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec
     return tuple(priors.get(s.name, s) for s in specs)
 
 
-#: The nuisance parameters whose prior a caller may replace with :func:`nuisance_prior`.
-NUISANCES = ("viscosity_scale", "stiffness_scale", "min_film")
+#: The nuisance parameters whose prior a caller may replace with :func:`nuisance_prior`: the
+#: recording-independent parameters of :func:`default_specs` that have a prior.
+NUISANCES = tuple(s.name for s in default_specs([], {}) if s.log_sd is not None)
 
 
 def nuisance_prior(name: str, center: float, log_sd: float) -> ParameterSpec:
@@ -803,12 +804,11 @@ def nuisance_prior(name: str, center: float, log_sd: float) -> ParameterSpec:
     which scales as a³/h_min², so a is known only as well as ``h_min`` is (the default prior's
     95 % factor 15.6 becomes about 6 in a).
     """
-    default = {s.name: s for s in default_specs([], {})}
     if name not in NUISANCES:
         raise RattlefitError(
             f"prior {name!r}: not a nuisance parameter; expected one of {', '.join(NUISANCES)}"
         )
-    spec = default[name]
+    (spec,) = (s for s in default_specs([], {}) if s.name == name)
     if not (math.isfinite(center) and spec.lower < center < spec.upper):
         raise RattlefitError(
             f"prior {name}: centre {center:g} {spec.unit} is outside the range "
