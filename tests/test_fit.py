@@ -7,6 +7,7 @@ compares the reported 95 % intervals with a truth the fit never saw.
 import json
 import os
 
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -22,6 +23,7 @@ from rattlefit.fit import (
     ParameterSpec,
     _admit_rivals,
     _bisect_profile_ends,
+    _build,
     _debiased_information,
     _estimate,
     _lower_profile_point,
@@ -236,6 +238,32 @@ def test_joint_fit_refuses_mixed_pairs(shared_recordings):
     b = read_recording(shared_recordings / "pairI_boundary_66.0_20pct_16Hz.h5")
     with pytest.raises(rf.RattlefitError, match="one gear pair"):
         identify([a, b])
+
+
+def test_a_fit_across_lubrications_gives_each_its_film_and_shares_the_oil(
+    shared_recordings, shared_truth
+):
+    # pair II under boundary lubrication at 20 °C and under oil jet at 25 °C (the independent
+    # simulator's files): one film half-length per lubrication, one viscosity factor of the oil
+    names = ["pairII_boundary_65.6_20pct_16Hz", "pairII_oiljet_65.6_20pct_16Hz"]
+    recs = [read_recording(shared_recordings / f"{n}.h5") for n in names]
+    problem, _ = _build(recs, FitOptions.quick(), np.random.default_rng(0))
+    spec_names = [s.name for s in problem.specs]
+    assert spec_names[:3] == ["a[boundary]", "a[oil_jet]", "drag_torque"]
+    assert problem.films == ("a[boundary]", "a[oil_jet]")
+    z = np.zeros(len(spec_names))
+    films = [0.085e-3, 1e-3]  # the truths of both files
+    for i, a in enumerate(films):
+        z[i] = problem.specs[i].z_of(a)
+    i_mu = spec_names.index("viscosity_scale")
+    z[i_mu] = problem.specs[i_mu].z_of(1.0)
+    no_dither = np.zeros(len(spec_names))
+    for r, (name, a) in enumerate(zip(names, films, strict=True)):
+        p = problem.params_for(jnp.asarray(z), r, no_dither)
+        assert float(p.film_half_length) == pytest.approx(a, rel=1e-9)
+        # the shared factor 1 gives each file the oil's viscosity at its own temperature
+        mu = shared_truth[name]["viscosity_Pa_s"]
+        assert float(p.viscosity) == pytest.approx(mu, rel=0.01), name
 
 
 def test_estimate_reports_bounds_and_identification():

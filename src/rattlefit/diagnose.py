@@ -298,16 +298,23 @@ def _screen_points(z_off: np.ndarray, specs: Sequence[ParameterSpec], problem) -
     return np.stack(points)
 
 
+def _film_indices(problem) -> list[int]:
+    """Where the film half-length(s) sit in the problem's coordinates (one per lubrication)."""
+    films = set(problem.films)
+    return [i for i, sp in enumerate(problem.specs) if sp.name in films]
+
+
 def _free_indices(problem) -> list[int]:
-    """Where the film half-length and the drag torque sit in the problem's coordinates."""
+    """Where the film half-length(s) and the drag torque sit in the problem's coordinates."""
     names = [sp.name for sp in problem.specs]
-    return [names.index("a"), names.index("drag_torque")]
+    return [*_film_indices(problem), names.index("drag_torque")]
 
 
 def _free_alternatives(z: np.ndarray, problem) -> np.ndarray:
-    """``z`` with the film half-length and the drag torque at each of :data:`FREE_FACTORS`
-    of their values in ``z`` (a factor 0: the bottom of the range); one row per pair."""
-    i_film, i_drag = _free_indices(problem)
+    """``z`` with the film half-length(s) and the drag torque at each of
+    :data:`FREE_FACTORS` of their values in ``z`` (a factor 0: the bottom of the range); one
+    row per pair, every film half-length scaled alike."""
+    i_drag = _free_indices(problem)[-1]
 
     def scaled(i, factor):
         spec = problem.specs[i]
@@ -318,7 +325,9 @@ def _free_alternatives(z: np.ndarray, problem) -> np.ndarray:
     rows = []
     for f_film, f_drag in FREE_FACTORS:
         row = np.array(z, dtype=float, copy=True)
-        row[i_film], row[i_drag] = scaled(i_film, f_film), scaled(i_drag, f_drag)
+        for i_film in _film_indices(problem):
+            row[i_film] = scaled(i_film, f_film)
+        row[i_drag] = scaled(i_drag, f_drag)
         rows.append(row)
     return np.stack(rows)
 

@@ -306,10 +306,10 @@ class FitOptions:
         known = {s.name for s in default_specs([], {})}  # every name but the backlashes
         for name, spec in self.priors.items():
             # a misspelt name would otherwise replace nothing, silently
-            if not (name in known or name.startswith("backlash[")):
+            if not (name in known or name.startswith(("backlash[", "a["))):
                 raise RattlefitError(
                     f"FitOptions.priors: unknown parameter {name!r}; expected one of "
-                    f"{', '.join(sorted(known))} or backlash[k]"
+                    f"{', '.join(sorted(known))}, a[lubrication] or backlash[k]"
                 )
             if not isinstance(spec, ParameterSpec) or spec.name != name:
                 raise RattlefitError(
@@ -488,6 +488,7 @@ class _Problem(eqx.Module):
     quantise: bool = eqx.field(static=True)
     regime_threshold: float | None = eqx.field(static=True)
     static: tuple = eqx.field(static=True)  # simulator options as sorted items
+    films: tuple = eqx.field(static=True)  # (R,) each recording's film half-length's name
     #: an extra effect whose fitted fields are specs named "<effect>.<field>" (diagnose)
     effect: Effect | None = None
 
@@ -499,7 +500,7 @@ class _Problem(eqx.Module):
         """RattleParams of recording r from the unconstrained vector z (log-dithered)."""
         v = {s.name: s.value(z[i]) * jnp.exp(dither[i]) for i, s in enumerate(self.specs)}
         return RattleParams(
-            v["a"],
+            jnp.stack([v[name] for name in self.films])[r],
             v["drag_torque"],
             v["viscosity_scale"] * self.viscosities[r],
             jnp.stack([v[f"backlash[{k}]"] for k in range(self.n_rec)])[r],
@@ -751,10 +752,24 @@ def _debiased_information(j_data: np.ndarray, noise: np.ndarray, j_prior: np.nda
 MIN_INFORMATION = 1e-6
 
 
+def film_names(lubrications: Sequence[str]) -> tuple[str, ...]:
+    """The name of the film half-length each recording uses: ``a`` when all share one
+    lubrication, else ``a[<lubrication>]`` (one film half-length per lubrication)."""
+    if len(set(lubrications)) <= 1:
+        return ("a",) * len(lubrications)
+    return tuple(f"a[{lub}]" for lub in lubrications)
+
+
 def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec, ...]:
-    """The fitted parameters with their prior ranges (SI units); ``priors`` replaces by name."""
+    """The fitted parameters with their prior ranges (SI units); ``priors`` replaces by name.
+
+    A fit across lubrications has one film half-length per lubrication (:func:`film_names`,
+    in the order the lubrications first appear); everything else but the backlashes is
+    shared.
+    """
+    films = film_names([rig.recording.operating.lubrication for rig in rigs]) or ("a",)
     specs = [
-        ParameterSpec("a", "m", 1e-6, 5e-3, fd_log_step=0.2),
+        *(ParameterSpec(n, "m", 1e-6, 5e-3, fd_log_step=0.2) for n in dict.fromkeys(films)),
         ParameterSpec("drag_torque", "N m", 2e-3, 0.5, fd_log_step=0.15),
         ParameterSpec("viscosity_scale", "1", 0.2, 5.0, center=1.0, log_sd=0.25, fd_log_step=0.15),
         ParameterSpec(
@@ -849,12 +864,6 @@ def _build(
                 f"file has z = {gp.teeth_driving}/{gp.teeth_driven} and "
                 f"{first.recording.path} has z = {gp0.teeth_driving}/{gp0.teeth_driven}"
             )
-        if rig.recording.operating.lubrication != first.recording.operating.lubrication:
-            raise RattlefitError(
-                f"{rig.recording.path}: /operating@lubrication: a joint fit shares a, so all "
-                f"files need one lubrication; got {rig.recording.operating.lubrication!r} and "
-                f"{first.recording.operating.lubrication!r}"
-            )
         if rig.sample_rate != first.sample_rate:
             raise RattlefitError(
                 f"{rig.recording.path}: /encoders@sample_rate_hz: a joint fit needs one "
@@ -873,7 +882,8 @@ def _build(
         data.append(np.asarray(spectral_features(rm, rig.bands)))
     specs = default_specs(rigs, options.priors)
     n_dither = max(m, options.n_noise_realisations, options.n_covariance_realisations)
-    weight = {"a": 1.0, "drag_torque": 1.0, "viscosity_scale": 0.5}
+    films = film_names([r.recording.operating.lubrication for r in rigs])
+    weight = {**dict.fromkeys(films, 1.0), "drag_torque": 1.0, "viscosity_scale": 0.5}
     scale = np.array([weight.get(sp.name, 0.0) for sp in specs])
     dither = rng.normal(size=(n_dither, len(specs))) * scale * options.dither
     encoder_phase = rng.uniform(size=(n_dither, 2))
@@ -906,6 +916,7 @@ def _build(
         quantise=options.quantisation == "encoders",
         regime_threshold=options.regime_threshold,
         static=static,
+        films=films,
     )
     return problem, rigs
 
@@ -933,9 +944,13 @@ def identify(
 ) -> FitResult:
     """Identify ``a``, ``drag_torque`` and the viscosity from one or more recordings.
 
-    Several recordings are fitted jointly: they share ``a``, ``drag_torque``, the viscosity
-    factor, the stiffness scale and ``h_min`` (one gear pair, one lubrication, e.g. a backlash
-    sweep as in the paper's Figs. 10–12); each has its own backlash.
+    Several recordings of one gear pair are fitted jointly: they share ``a``,
+    ``drag_torque``, the viscosity factor, the stiffness scale and ``h_min`` (e.g. a backlash
+    sweep as in the paper's Figs. 10–12); each has its own backlash. Recordings under
+    different lubrications each get their lubrication's film half-length, ``a[boundary]``,
+    ``a[oil_jet]``, … (:func:`film_names`) and share the rest: under oil jet the squeeze
+    force saturates in ``a`` and pins the oil's viscosity, which a boundary-lubricated
+    recording alone cannot separate from ``a`` and ``h_min``.
 
     ``progress`` receives one-line messages while the fit works.
     """
@@ -957,11 +972,17 @@ def identify(
     # starting points: prior centres, with (a, T_b) from a seeded scrambled Sobol' sequence
     z_center = np.array([s.z_of(s.center) if s.center else 0.0 for s in specs])
     starts = np.tile(z_center, (options.n_starts, 1))
-    sobol = qmc.Sobol(d=2, scramble=True, seed=rng)
+    # (one column per film half-length: a fit across lubrications has several)
+    spread = [
+        (i, START_RANGES[s.name == "drag_torque"])
+        for i, s in enumerate(specs)
+        if s.name == "drag_torque" or s.name in problem.films
+    ]
+    sobol = qmc.Sobol(d=len(spread), scramble=True, seed=rng)
     u = sobol.random_base2(max(0, math.ceil(math.log2(options.n_starts))))[: options.n_starts]
-    for col, (lo, hi) in enumerate(START_RANGES):
+    for col, (i, (lo, hi)) in enumerate(spread):
         vals = np.exp(np.log(lo) + u[:, col] * math.log(hi / lo))
-        starts[:, col] = [specs[col].z_of(v) for v in vals]
+        starts[:, i] = [specs[i].z_of(v) for v in vals]
 
     def band_sigma(ens):
         return ensemble.band_sigma(
@@ -1209,7 +1230,7 @@ def identify(
         vs.bound,
         vs.map_value * mu0,
     )
-    ordered = {k: estimates[k] for k in ["a", "drag_torque", "viscosity"]}
+    ordered = {k: estimates[k] for k in [*dict.fromkeys(problem.films), "drag_torque", "viscosity"]}
     ordered.update({k: v for k, v in estimates.items() if k not in ordered})
     wall = time.perf_counter() - t_start
     say(f"done in {wall:.1f} s")
@@ -1256,7 +1277,7 @@ def identify(
 #: threshold (:func:`_admit_rivals`); the rest are far outside the 95 % region.
 RIVAL_SCREEN = 2.0
 #: Where the starting points of (a, T_b) are spread (log-uniformly), m and N m.
-START_RANGES = ((5e-6, 2e-3), (5e-3, 0.2))
+START_RANGES = ((5e-6, 2e-3), (5e-3, 0.2))  # (each film half-length, drag torque)
 #: Starts re-evaluated with all realisations beyond the ``n_refine`` that are refined.
 SCREEN_EXTRA = 5
 
