@@ -8,12 +8,15 @@ fit called `a` identified. Issue 3's check: truth inside the interval in ≥ 90 
 
     python benchmarks/coverage.py [--cases 10] [--seed 0] [--json out.json] [--only K ...]
                                   [--rtol R] [--dither D] [--set FIELD=JSON ...]
-                                  [--prior NAME=CENTER:LOG_SD ...]
+                                  [--prior NAME=CENTER:LOG_SD ...] [--companion LUB]
 
 `--rtol` and `--dither` replace those `FitOptions` fields (the defaults otherwise), to measure
 what a cheaper tolerance or another dither does to coverage; `--set` replaces any other field
 (`--set profile_roughness=true`), its value read as JSON; `--prior min_film=2e-6:0.1` replaces
-a nuisance's prior (what a rig that knows h_min would give).
+a nuisance's prior (what a rig that knows h_min would give). `--companion oil_jet` fits each
+case jointly with an oil-jet recording of the same pair and operating point (one `a` per
+lubrication, the oil, `T_b` and `h_min` shared); `a` in the table is then the case's own
+lubrication's, and the companion's `a` is reported beside it.
 
 Each case costs one identification (100–450 s on 2 cores), so the default sample of 10 takes
 ~35 minutes. Seeds are printed; every case is reproducible.
@@ -31,7 +34,7 @@ import time
 import numpy as np
 
 import rattlefit as rf
-from rattlefit.fit import FitOptions, identify, parse_prior
+from rattlefit.fit import FitOptions, film_names, identify, parse_prior
 from rattlefit.oil import dynamic_viscosity
 from rattlefit.recording import OperatingPoint
 from rattlefit.synthetic import synthesize
@@ -56,6 +59,12 @@ def main() -> None:
         nargs="+",
         metavar="K",
         help="run only these cases of the seeded sample (1-based, as printed)",
+    )
+    ap.add_argument(
+        "--companion",
+        choices=sorted(LUBRICATION),
+        help="fit each case jointly with a recording of the same pair and operating point under "
+        "this lubrication (seed: the case's + 1); cases already under it are skipped",
     )
     ap.add_argument("--rtol", type=float, help="FitOptions.rtol (default: FitOptions')")
     ap.add_argument("--dither", type=float, help="FitOptions.dither (default: FitOptions')")
@@ -108,9 +117,20 @@ def main() -> None:
         seed = int(rng.integers(1 << 30))
         if args.only and n + 1 not in args.only:
             continue
-        rec, _ = synthesize(g, op, params, seed=seed)
+        recs = [synthesize(g, op, params, seed=seed)[0]]
+        film = "a"
+        if args.companion:
+            if lub == args.companion:
+                print(f"[{n + 1}/{len(picks)}] pair {pair}, {lub}: skipped (the companion's)")
+                continue
+            a_c, temp_c = LUBRICATION[args.companion]
+            mu_c = dynamic_viscosity(temp_c, 156.5, 15.7, 890.0)
+            op_c = dataclasses.replace(op, lubrication=args.companion, oil_temperature_c=temp_c)
+            params_c = rf.RattleParams(a_c, DRAG[pair], mu_c, g.backlash)
+            recs.append(synthesize(g, op_c, params_c, seed=seed + 1)[0])
+            film, film_c = film_names([lub, args.companion])
         t0 = time.perf_counter()
-        res = identify([rec], FitOptions(seed=seed, **overrides))
+        res = identify(recs, FitOptions(seed=seed, **overrides))
         truth = {"a": a, "drag_torque": DRAG[pair], "viscosity": mu}
         row = {
             "case": f"pair {pair}, {lub}, {cd} mm, {pct} %, {f:g} Hz",
@@ -121,7 +141,7 @@ def main() -> None:
             "poor_fit": res.poor_fit,
         }
         for name, value in truth.items():
-            p = res.parameters[name]
+            p = res.parameters[film if name == "a" else name]
             row[name] = {
                 "truth": value,
                 "lower": p.lower,
@@ -131,6 +151,14 @@ def main() -> None:
                 "bound": p.bound,
                 "covered": bool(p.lower <= value <= p.upper),
             }
+        if args.companion:
+            p = res.parameters[film_c]
+            row["a_companion"] = {
+                "truth": a_c,
+                "lower": p.lower,
+                "upper": p.upper,
+                "covered": bool(p.lower <= a_c <= p.upper),
+            }
         a_est = row["a"]
         row["a_within_20pct"] = (
             None if not a_est["identified"] or a == 0 else abs(a_est["estimate"] / a - 1) <= 0.2
@@ -138,6 +166,8 @@ def main() -> None:
         rows.append(row)
         cov = " ".join(f"{k}:{'IN' if row[k]['covered'] else 'OUT'}" for k in truth)
         ident = "a identified" if a_est["identified"] else "a not identified"
+        if args.companion:
+            ident += f"; companion a:{'IN' if row['a_companion']['covered'] else 'OUT'}"
         print(
             f"[{n + 1}/{len(picks)}] {row['case']} (seed {seed}): {cov}; {ident}; "
             f"χ²={res.chi2:.0f}/{res.dof}{' (flagged poor fit)' if res.poor_fit else ''}; "
@@ -160,7 +190,12 @@ def main() -> None:
         tmp = f"{args.json}.tmp"
         with open(tmp, "w") as fh:
             json.dump(
-                {"options": overrides, "seed": args.seed, "cases": rows},
+                {
+                    "options": overrides,
+                    "seed": args.seed,
+                    "companion": args.companion,
+                    "cases": rows,
+                },
                 fh,
                 indent=2,
                 default=dataclasses.asdict,  # the priors' specs

@@ -34,8 +34,9 @@ from rattlefit.fit import (
     identify,
     nuisance_prior,
 )
+from rattlefit.oil import dynamic_viscosity
 from rattlefit.recording import OperatingPoint, read_recording
-from rattlefit.synthetic import synthesize
+from rattlefit.synthetic import PAPER_OIL, synthesize
 
 TARGETS = ("a", "drag_torque", "viscosity")
 
@@ -63,6 +64,37 @@ def mild_recording():
     return rec, _truth_of(p)
 
 
+def test_an_oil_jet_companion_identifies_the_boundary_film(mild_recording):
+    # The mild boundary recording fitted together with an oil-jet recording of the same pair,
+    # operating point and oil (at 25 °C): one a per lubrication, the rest shared. Alone, the
+    # boundary file pins only μa³/h_min² (test_mild_rattle_bounds_a: a to a factor 5–6); the
+    # oil-jet file pins μ/√h_min, since its squeeze force saturates in a. Together they leave
+    # a[boundary] ∝ √h_min. Session 19 (seed 0, one device, 1301 s beside another fit):
+    # a[boundary] 81.5 µm in [63.5, 104.7] (truth 85), μ identified in [0.404, 0.600] Pa s
+    # (0.494), T_b [0.0237, 0.0262] N m (0.025), a[oil_jet] ≥ 340 µm (1 mm).
+    rec, truth = mild_recording
+    g = rf.table2_pair("II", center_distance_mm=65.0)
+    op = OperatingPoint("oil_jet", 25.0, 52.36, 5.236, 8.0)
+    oil = PAPER_OIL  # synthesize's
+    mu = dynamic_viscosity(25.0, oil.viscosity_40c_cst, oil.viscosity_100c_cst, oil.density_kg_m3)
+    companion, _ = synthesize(g, op, rf.RattleParams(1e-3, 0.025, mu, g.backlash), seed=12)
+    result = identify([rec, companion], FitOptions(seed=0))
+    truth = {**truth, "a[boundary]": truth["a"], "a[oil_jet]": 1e-3}
+    del truth["a"]
+    assert not _misses(result, truth), ("(lower, truth, upper):", _misses(result, truth))
+    a = result.parameters["a[boundary]"]
+    # issue 3: where a is reported identified, the estimate lands within 20 % of the truth
+    assert a.identified and abs(a.estimate / truth["a[boundary]"] - 1) < 0.2, a
+    assert result.parameters["a[oil_jet]"].bound == "lower"  # saturated: a bound, no number
+    doc = result.to_json()
+    assert list(doc["parameters"])[:4] == ["a[boundary]", "a[oil_jet]", "drag_torque", "viscosity"]
+
+
+@pytest.mark.skipif(
+    not os.environ.get("RATTLEFIT_SLOW"),
+    reason="one fit, 456 s on one JAX device in CI (session 18); the joint fit with an oil-jet "
+    "companion above covers its recording in CI",
+)
 def test_mild_rattle_bounds_a(mild_recording):
     rec, truth = mild_recording
     result = identify([rec], FitOptions(seed=0))
