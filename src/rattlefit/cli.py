@@ -300,8 +300,8 @@ def simulate(**o) -> None:
 def identify(
     files, output, plot_dir, seed, realisations, starts, drive, quick, priors, quiet
 ) -> None:
-    """Fit a, T_b and the viscosity to one recording, or jointly to several (one pair and
-    lubrication, e.g. a backlash sweep)."""
+    """Fit a, T_b and the viscosity to one recording, or jointly to several of one pair
+    (e.g. a backlash sweep; under several lubrications each gets its own a[LUBRICATION])."""
     from .fit import FitOptions
     from .fit import identify as run
     from .recording import read_recording
