@@ -296,6 +296,10 @@ def test_a_fit_across_lubrications_gives_each_its_film_and_shares_the_oil(
         # the shared factor 1 gives each file the oil's viscosity at its own temperature
         mu = shared_truth[name]["viscosity_Pa_s"]
         assert float(p.viscosity) == pytest.approx(mu, rel=0.01), name
+    # a prior on the single-lubrication name would replace nothing here: refused, not ignored
+    film = ParameterSpec("a", "m", 1e-5, 1e-3)
+    with pytest.raises(rf.RattlefitError, match="'a' is not a parameter of this fit"):
+        _build(recs, FitOptions.quick(priors={"a": film}), np.random.default_rng(0))
 
 
 def test_estimate_reports_bounds_and_identification():

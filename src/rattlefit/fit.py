@@ -881,6 +881,12 @@ def _build(
         rm = rig.recording.relative_motion[:n]
         data.append(np.asarray(spectral_features(rm, rig.bands)))
     specs = default_specs(rigs, options.priors)
+    unused = sorted(set(options.priors) - {s.name for s in specs})
+    if unused:  # e.g. "a" in a fit across lubrications, or a backlash beyond the files
+        raise RattlefitError(
+            f"FitOptions.priors: {', '.join(map(repr, unused))} is not a parameter of this fit "
+            f"(its parameters: {', '.join(s.name for s in specs)})"
+        )
     n_dither = max(m, options.n_noise_realisations, options.n_covariance_realisations)
     films = film_names([r.recording.operating.lubrication for r in rigs])
     weight = {**dict.fromkeys(films, 1.0), "drag_torque": 1.0, "viscosity_scale": 0.5}
