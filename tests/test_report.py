@@ -9,7 +9,7 @@ from rattlefit.fit import FitOptions, FitResult, ParameterEstimate
 from rattlefit.report import format_table
 
 
-def _result(chi2, dof):
+def _result(chi2, dof, chi2_recordings=(), recordings=()):
     a = ParameterEstimate("a", "m", 8.5e-5, 6e-5, 1.1e-4, True)
     tb = ParameterEstimate("drag_torque", "N m", None, 0.0, 0.05, False, "upper")
     return FitResult(
@@ -23,7 +23,7 @@ def _result(chi2, dof):
         message="converged",
         seed=7,
         wall_time=1.0,
-        recordings=[],
+        recordings=list(recordings),
         options=FitOptions(),
         z=np.zeros(2),
         covariance_z=np.eye(2),
@@ -32,6 +32,7 @@ def _result(chi2, dof):
         sigma=[],
         band_centers=np.zeros(1),
         map_params=[],
+        chi2_recordings=list(chi2_recordings),
     )
 
 
@@ -51,3 +52,18 @@ def test_table_warns_only_about_a_poor_fit():
     text = format_table(bad)
     assert "warning: χ² is far above its 28 degrees of freedom" in text
     assert "√(χ²/dof) = 2.1" in text
+
+
+def test_a_joint_fit_names_the_recording_the_model_does_not_explain():
+    # 57 dof over two recordings: 28.5 each. 30 is an ordinary χ² on 28.5 (p ≈ 0.4), 400 is not
+    files = ["/data/pairII_boundary_65.6.h5", "/data/pairII_oiljet_65.6.h5"]
+    bad = _result(430.0, 57, chi2_recordings=[30.0, 400.0], recordings=files)
+    assert bad.poorly_fitted == [1]
+    assert bad.to_json()["fit"]["poorly_fitted_recordings"] == [files[1]]
+    text = format_table(bad)
+    assert "does not explain pairII_oiljet_65.6.h5 within" in text
+    assert "each recording's own √(χ²/dof)" in text and "boundary" not in text
+    # both merely mediocre, poor only together: no single file is blamed
+    both = _result(100.0, 57, chi2_recordings=[50.0, 50.0], recordings=files)
+    assert both.poor_fit and both.poorly_fitted == []
+    assert "does not explain these recordings together" in format_table(both)

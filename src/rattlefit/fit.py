@@ -427,6 +427,15 @@ class FitResult:
         parameters)."""
         return self.p_value < POOR_FIT_P
 
+    @property
+    def poorly_fitted(self) -> list[int]:
+        """In a joint fit, the recordings whose own χ² is poor on their share of the degrees
+        of freedom (p < :data:`POOR_FIT_P`): where to look first when :attr:`poor_fit`."""
+        share = max(self.dof, 1) / max(len(self.chi2_recordings), 1)
+        return [
+            k for k, c in enumerate(self.chi2_recordings) if stats.chi2.sf(c, share) < POOR_FIT_P
+        ]
+
     def rattle_params(self, k: int = 0) -> RattleParams:
         """The MAP :class:`RattleParams` of recording ``k``."""
         v = self.map_params[k]
@@ -449,6 +458,7 @@ class FitResult:
                 "reduced_chi2": self.chi2 / max(self.dof, 1),
                 "p_value": self.p_value,
                 "poor_fit": self.poor_fit,
+                "poorly_fitted_recordings": [self.recordings[k] for k in self.poorly_fitted],
                 "chi2_per_recording": self.chi2_recordings,
                 "iterations": self.n_iterations,
                 "success": self.success,

@@ -55,12 +55,17 @@ def format_table(result: FitResult) -> str:
         f"Levenberg–Marquardt steps; seed {result.seed}; {result.wall_time:.1f} s"
     )
     if result.poor_fit:
+        which = "this recording"
+        widened = f"√(χ²/dof) = {(result.chi2 / result.dof) ** 0.5:.1f}"
+        if len(result.chi2_recordings) > 1:
+            poor = [Path(result.recordings[k]).name for k in result.poorly_fitted]
+            which = ", ".join(poor) if poor else "these recordings together"
+            widened = "each recording's own √(χ²/dof)"
         lines.append(
             f"warning: χ² is far above its {result.dof} degrees of freedom "
-            f"(p = {result.p_value:.1e}): the model does not explain this recording within "
-            f"its run-to-run spread. The intervals are widened by √(χ²/dof) = "
-            f"{(result.chi2 / result.dof) ** 0.5:.1f} but may still miss; look at the "
-            "spectrum plot (--plot)."
+            f"(p = {result.p_value:.1e}): the model does not explain {which} within "
+            f"its run-to-run spread. The intervals are widened by {widened} but may still "
+            "miss; look at the spectrum plot (--plot)."
         )
     return "\n".join(lines)
 
