@@ -770,6 +770,11 @@ def film_names(lubrications: Sequence[str]) -> tuple[str, ...]:
     return tuple(f"a[{lub}]" for lub in lubrications)
 
 
+def _films_of(rigs: Sequence[RigSetup]) -> tuple[str, ...]:
+    """:func:`film_names` of the rigs' recordings."""
+    return film_names([rig.recording.operating.lubrication for rig in rigs])
+
+
 def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec, ...]:
     """The fitted parameters with their prior ranges (SI units); ``priors`` replaces by name.
 
@@ -777,7 +782,7 @@ def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec
     in the order the lubrications first appear); everything else but the backlashes is
     shared.
     """
-    films = film_names([rig.recording.operating.lubrication for rig in rigs]) or ("a",)
+    films = _films_of(rigs) or ("a",)
     specs = [
         *(ParameterSpec(n, "m", 1e-6, 5e-3, fd_log_step=0.2) for n in dict.fromkeys(films)),
         ParameterSpec("drag_torque", "N m", 2e-3, 0.5, fd_log_step=0.15),
@@ -898,7 +903,7 @@ def _build(
             f"(its parameters: {', '.join(s.name for s in specs)})"
         )
     n_dither = max(m, options.n_noise_realisations, options.n_covariance_realisations)
-    films = film_names([r.recording.operating.lubrication for r in rigs])
+    films = _films_of(rigs)
     weight = {**dict.fromkeys(films, 1.0), "drag_torque": 1.0, "viscosity_scale": 0.5}
     scale = np.array([weight.get(sp.name, 0.0) for sp in specs])
     dither = rng.normal(size=(n_dither, len(specs))) * scale * options.dither
