@@ -655,7 +655,10 @@ def _features_chunk(problem: _Problem, rows):
 #: counts. 24, the realisations of one point in the covariance and profile stages, gives each
 #: device one point. Measured on the mild shared file's identify (2 devices, same features):
 #: 99 s against 110 s with 8; 32 with the remainder in chunks of 8 gained 1 s (its chunks
-#: straddle points).
+#: straddle points). The trajectories do not depend on the chunking while a device gets
+#: more than one row (the features may differ in their last bit or two; tests/test_fit.py);
+#: a lone row compiles to scalar code that rounds exp and log differently, and chaos makes
+#: that a different realisation.
 CHUNK_ROWS = 24
 
 
