@@ -43,16 +43,14 @@ from rattlefit.spectra import spectral_features
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "recordings"
 #: (label, field of RattleParams, factor on the truth) for ``--variants``
 VARIANTS = (
-    ("h_min 2.5 µm", "min_film", 2.5e-6 / DEFAULT_MIN_FILM),
-    ("h_min 3 µm", "min_film", 3e-6 / DEFAULT_MIN_FILM),
-    ("h_min 5 µm", "min_film", 5e-6 / DEFAULT_MIN_FILM),
-    ("h_min 10 µm", "min_film", 10e-6 / DEFAULT_MIN_FILM),
-    ("μ × 0.8", "viscosity", 0.8),
-    ("μ × 0.5", "viscosity", 0.5),
+    *(
+        (f"h_min {h:g} µm", "min_film", h * 1e-6 / DEFAULT_MIN_FILM)
+        for h in (2.5, 3, 3.5, 4, 5, 6, 10)
+    ),
+    *((f"μ × {f:g}", "viscosity", f) for f in (0.9, 0.8, 0.7, 0.6, 0.5)),
     ("T_b × 2", "drag_torque", 2.0),
-    ("T_b × 0.5", "drag_torque", 0.5),
     ("a × 0.3", "film_half_length", 0.3),
-    ("stiffness × 0.5", "stiffness_scale", 0.5),
+    ("a × 0.1", "film_half_length", 0.1),
 )
 
 
