@@ -16,6 +16,10 @@ independent simulator's shared recordings (with its `truth.json`):
 
     python benchmarks/regimes.py [--recording pairII_oiljet_65.6_20pct_16Hz]
                                  [--realisations 48] [--reference 16] [--variants]
+                                 [--devices N]
+
+The realisations are seeded by their release states, but the compiled program, and so each
+chaotic draw, depends on the device count: the README's tables are from `--devices 1`.
 
 About 1 minute without the reference on 2 cores. Results are in benchmarks/README.md ("The
 pair II oil-jet shared file is a regime this model reaches rarely").
@@ -95,9 +99,12 @@ def main() -> None:
     ap.add_argument("--realisations", type=int, default=48)
     ap.add_argument("--reference", type=int, default=0, metavar="N")
     ap.add_argument("--variants", action="store_true")
+    ap.add_argument(
+        "--devices", type=int, help="JAX CPU devices (default one per core; other draws)"
+    )
     args = ap.parse_args()
 
-    print(f"{rf.use_cpu_cores()} JAX device(s)", flush=True)
+    print(f"{rf.use_cpu_cores(args.devices)} JAX device(s)", flush=True)
     setup = rig.setup(read_recording(SHARED / f"{args.recording}.h5"))
     truth = json.loads((SHARED / "truth.json").read_text())[args.recording]
     params = RattleParams(
