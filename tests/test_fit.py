@@ -485,6 +485,14 @@ def test_a_prior_under_a_wrong_name_is_refused_not_ignored():
         nuisance_prior("a", 1e-4, 0.1)
 
 
+def test_counts_of_the_profile_stage_are_checked_at_construction():
+    with pytest.raises(rf.RattlefitError, match="polish_iterations must be ≥ 1, got 0"):
+        FitOptions(polish_iterations=0)
+    with pytest.raises(rf.RattlefitError, match="must be ≥ 0"):
+        FitOptions(profile_rounds=-1)
+    assert FitOptions(polish_iterations=1).polish_iterations == 1
+
+
 def test_rivals_below_the_threshold_join_the_profiles_and_no_others():
     # Δcost = t² along both free parameters, threshold 3: the intervals are ±√3 without
     # rivals. A candidate at (2.5, −2.5) with Δcost 2 is inside the 95 % region (an optimum or
