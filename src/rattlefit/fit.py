@@ -178,7 +178,8 @@ class FitOptions:
         then missed a truth, against one with both at 0.
     profile_rounds : rounds of re-optimising the other parameters at the profile values just
         outside each free parameter's interval (:func:`_polish_profile`); 0 keeps the scan's
-        two guesses. Each round costs about 30 % of a fit with four such values.
+        two guesses. Each round cost about 30 % of a fit with four such values (session 11,
+        two iterations a round).
     polish_iterations : damped Gauss–Newton iterations in each such round. 1 since session
         20 (was 2): the coverage study (seed 0) held 29/30 with either, and the 30 intervals
         moved by a few per cent at most; the whole fit of the mild shared file is about 8 %
