@@ -28,23 +28,19 @@ pair II oil-jet shared file is a regime this model reaches rarely").
 from __future__ import annotations
 
 import argparse
-import json
 import time
-from pathlib import Path
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
 import rattlefit as rf
-from rattlefit import rig
 from rattlefit.model import DEFAULT_MIN_FILM, RattleParams
-from rattlefit.recording import read_recording
 from rattlefit.reference import simulate_reference
 from rattlefit.simulate import broadcast_params, simulate_batch
 from rattlefit.spectra import spectral_features
+from run import _operating_points, _truth_params  # benchmarks/run.py: the shared files
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "recordings"
 #: (label, field of RattleParams, factor on the truth) for ``--variants``
 VARIANTS = (
     *(
@@ -105,14 +101,8 @@ def main() -> None:
     args = ap.parse_args()
 
     print(f"{rf.use_cpu_cores(args.devices)} JAX device(s)", flush=True)
-    setup = rig.setup(read_recording(SHARED / f"{args.recording}.h5"))
-    truth = json.loads((SHARED / "truth.json").read_text())[args.recording]
-    params = RattleParams(
-        truth["a_mm"] * 1e-3,
-        truth["drag_torque_Nm"],
-        truth["viscosity_Pa_s"],
-        setup.geometry.backlash,
-    )
+    [(_, setup, truth)] = _operating_points([args.recording])
+    params = _truth_params(setup, truth)
     data = np.asarray(setup.features)
     centers = np.asarray(setup.bands.centers)
     low = int(np.sum(centers < 0.9 * setup.recording.operating.drive_frequency_hz))
