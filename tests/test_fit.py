@@ -31,6 +31,7 @@ from rattlefit.fit import (
     _polish_profile,
     _profile_interval,
     _profile_threshold,
+    _ProfileCosts,
     _threshold_crossing,
     identify,
     nuisance_prior,
@@ -296,6 +297,55 @@ def test_features_do_not_depend_on_how_the_rows_are_chunked(monkeypatch, mild_re
     np.testing.assert_allclose(out[2], out[24], rtol=1e-13, atol=0)
     assert out[24].shape == (2, 1, 6, problem.data.shape[1])
     assert not np.array_equal(out[24][0], out[24][1])  # the two points differ
+    # a point's realisations simulated in two parts (_ProfileCosts) are the same simulations
+    parts = [_evaluate(problem, zs, realisations=r) for r in ([4, 0], [1, 2, 3, 5])]
+    joined = np.concatenate(parts, axis=2)[:, :, [1, 2, 3, 4, 0, 5]]
+    np.testing.assert_allclose(joined, out[24], rtol=1e-13, atol=0)
+
+
+def test_profile_points_far_outside_are_set_aside_after_a_few_realisations(mild_recording):
+    # _ProfileCosts simulates each point with the first `screen` realisations, and the rest
+    # only where its Δcost is not already far above the threshold. A completed point's cost
+    # must be exactly that of all realisations at once; a set-aside one keeps a screened
+    # Δcost above the limit. Six points on one device (a chunk of 24 rows, 6 × 4 screened):
+    # the optimum's neighbours, and film half-lengths far off (a → 0, dry, and a 10×)
+    import rattlefit.fit as fit
+
+    problem, _ = _build([mild_recording[0]], FitOptions(), np.random.default_rng(0))
+    y0 = np.asarray(problem.y0)[:, [0, 1, 2, 3, 4, 5, 0, 1]]  # 8 realisations
+    y0[:, 6:] *= 0.5  # the last two released elsewhere
+    spec = problem.specs[0]
+    z0 = np.array([spec.z_of(85e-6)] + [0.0] * (len(problem.specs) - 1))
+    z0[1] = problem.specs[1].z_of(0.025)
+
+    def cost_of(per, z):  # any cost of the realisations' features will do
+        return float(np.sum((np.asarray(problem.mean_of(per)) - np.asarray(problem.data)) ** 2))
+
+    near = np.stack([z0, z0 + 0.01 * np.eye(len(z0))[0], z0 - 0.01 * np.eye(len(z0))[0]])
+    per_near = _evaluate(problem, near, y0)
+    far = [spec.z_of(2e-6), spec.z_of(0.85e-3)]
+    points = np.stack(
+        [z0, near[1], near[2], *(np.where(np.arange(len(z0)) == 0, t, z0) for t in far), z0 + 0.02]
+    )
+    whole = _ProfileCosts(problem, y0, cost_of, per_near, near, threshold=0.05, screen=0)
+    raced = _ProfileCosts(problem, y0, cost_of, per_near, near, threshold=0.05, screen=4)
+    assert whole.limit is None and raced.limit >= fit.SCREEN_FACTOR * 0.05
+    exact, dc = whole(points), raced(points)
+    kept = dc <= raced.limit
+    assert raced.n_set_aside == np.sum(~kept) >= 1  # a far film is plainly worse
+    assert kept[:3].all()  # the optimum and its neighbours are always completed
+    np.testing.assert_allclose(dc[kept], exact[kept], rtol=1e-9, atol=1e-9)
+    assert exact[0] == pytest.approx(0.0, abs=1e-9)
+    # a set-aside point's screened Δcost stands; its full one is far outside too
+    assert np.all(exact[~kept] > 0.05)
+    # … until it ends a profile interval's bracket: the end is interpolated towards it, so
+    # complete_ends gives it its full cost (all kept points inside, the far films outside)
+    profile = {float(zk[0]): (float(c), zk) for zk, c in zip(points, dc, strict=True)}
+    inside = float(np.max(dc[kept])) + 1e-9
+    assert raced.complete_ends({0: profile}, inside) == np.sum(~kept)
+    for j in np.flatnonzero(~kept):
+        assert profile[float(points[j, 0])][0] == pytest.approx(exact[j], rel=1e-9, abs=1e-9)
+    assert not raced.partial and raced.complete_ends({0: profile}, inside) == 0
 
 
 def test_joint_fit_refuses_mixed_pairs(shared_recordings):

@@ -205,6 +205,10 @@ class FitOptions:
         The cost: wider intervals where the profile is rough (the mild file's ``T_b``
         [0.0062, 0.0298] N m, not identified, against [0.0171, 0.0287]), and 4 simulations
         per free parameter per covariance realisation (a few per cent of a fit).
+    profile_screen : the profile stage simulates each value with this many of the
+        ``n_covariance_realisations`` first, and the rest only where its cost is not already
+        far above the profile threshold (:class:`_ProfileCosts`); 0 simulates every value
+        with all of them.
     recentre_rounds : how many times the Laplace and profile stages may start again from
         the lowest point of the profiles, when that lies below the optimum's cost by more
         than the Monte Carlo allowance of the profile threshold (the Levenberg–Marquardt
@@ -264,6 +268,7 @@ class FitOptions:
     polish_iterations: int = 1
     profile_bisections: int = 4
     profile_roughness: bool = True
+    profile_screen: int = 6
     recentre_rounds: int = 0
     seed: int = 0
     rtol: float = 1e-5
@@ -310,7 +315,7 @@ class FitOptions:
             raise RattlefitError(
                 f"FitOptions.quantisation must be 'encoders' or 'white', got {self.quantisation!r}"
             )
-        counts = ("profile_rounds", "profile_bisections", "recentre_rounds")
+        counts = ("profile_rounds", "profile_bisections", "profile_screen", "recentre_rounds")
         if any(getattr(self, k) < 0 for k in counts):
             raise RattlefitError(f"FitOptions.{', '.join(counts)} must be ≥ 0")
         if self.polish_iterations < 1:
@@ -543,21 +548,25 @@ class _Problem(eqx.Module):
             }
         )
 
-    def rows(self, zs, y0=None):
+    def rows(self, zs, y0=None, realisations=None):
         """One simulation per row for each point of ``zs`` (K, P), recording and realisation.
 
         Returns ``(z, recording, release state, dither, encoder phase)`` with K·R·M rows,
         ordered point, recording, realisation; ``y0`` (R, M, 2) replaces the problem's release
-        states.
+        states. ``realisations`` (indices into the M) keeps only those, each exactly as in the
+        full set (its release state, its dither centred over all M, its encoder phase), so
+        that a point's realisations can be simulated in parts (:class:`_ProfileCosts`).
         """
         y0 = self.y0 if y0 is None else y0
         k, m = zs.shape[0], y0.shape[1]
+        idx = np.arange(m) if realisations is None else np.asarray(realisations)
+        n = idx.shape[0]
         return (
-            jnp.repeat(zs, self.n_rec * m, axis=0),
-            jnp.tile(jnp.repeat(jnp.arange(self.n_rec), m), k),
-            jnp.tile(y0.reshape(-1, 2), (k, 1)),
-            jnp.tile(self._dither(m), (k * self.n_rec, 1)),
-            jnp.tile(self.encoder_phase[:m], (k * self.n_rec, 1)),
+            jnp.repeat(zs, self.n_rec * n, axis=0),
+            jnp.tile(jnp.repeat(jnp.arange(self.n_rec), n), k),
+            jnp.tile(y0[:, idx].reshape(-1, 2), (k, 1)),
+            jnp.tile(self._dither(m)[idx], (k * self.n_rec, 1)),
+            jnp.tile(self.encoder_phase[:m][idx], (k * self.n_rec, 1)),
         )
 
     def _dither(self, m):
@@ -678,16 +687,19 @@ def _chunk_size() -> int:
     return CHUNK_ROWS * len(jax.local_devices())
 
 
-def _evaluate(problem: _Problem, zs, y0=None) -> np.ndarray:
+def _evaluate(problem: _Problem, zs, y0=None, realisations=None) -> np.ndarray:
     """Features of every realisation at each point of ``zs``: (K, R, M, B), numpy.
 
     Outside the Levenberg–Marquardt loop every evaluation goes through this one compiled
     program of :func:`_chunk_size` rows (padded with repeats of the last row), so the
-    simulator is compiled once however many points are asked for.
+    simulator is compiled once however many points are asked for. ``realisations`` (indices)
+    evaluates only those of the M (see :meth:`_Problem.rows`): (K, R, len(realisations), B).
     """
     zs = jnp.atleast_2d(jnp.asarray(zs))
     m = problem.y0.shape[1] if y0 is None else y0.shape[1]
-    rows = problem.rows(zs, None if y0 is None else jnp.asarray(y0))
+    if realisations is not None:
+        m = len(realisations)
+    rows = problem.rows(zs, None if y0 is None else jnp.asarray(y0), realisations)
     n, c = rows[0].shape[0], _chunk_size()
     pad = -n % c
     rows = jax.tree_util.tree_map(
@@ -1145,20 +1157,11 @@ def identify(
         prior = np.asarray(problem.prior_rows(jnp.asarray(zk)))
         return float(noise.quadratic(r) + 2 * np.sum(np.log(sig)) + np.sum(prior**2))
 
-    def profile_costs(points, cost_opt):
-        """The costs of ``points`` above the optimum's ``cost_opt``."""
-        per = _evaluate(problem, points, y0_cov)
-        return np.array([cost_of(per[k], points[k]) - cost_opt for k in range(len(points))])
-
-    def bisect_ends(profiles, threshold, zk, cov, cost_opt):
+    def bisect_ends(profiles, threshold, zk, cov, profile_costs):
         n = _bisect_profile_ends(
-            profiles,
-            threshold,
-            zk,
-            cov,
-            lambda points: profile_costs(points, cost_opt),
-            rounds=options.profile_bisections,
+            profiles, threshold, zk, cov, profile_costs, rounds=options.profile_bisections
         )
+        profile_costs.complete_ends(profiles, threshold)
         if n:
             say(f"  bisected the profile intervals' ends ({n} points)")
 
@@ -1185,10 +1188,9 @@ def identify(
         var_cost += 2.0 * n_data / noise.sigma_dof
         noise_sd = math.sqrt(2.0 * var_cost)  # of a difference of two costs
         threshold = _profile_threshold(noise_sd)
-        profiles, cost_opt = _profile_scan(problem, z, cov, y0_cov, cost_of)
 
-        # the other candidates (refined optima, the best start) distinct from this optimum,
-        # and with the roughness allowance the points 1–2 % away: one batched evaluation
+        # the optimum, the other candidates (refined optima, the best start) distinct from
+        # it, and with the roughness allowance the points 1–2 % away: one batched evaluation
         others = [zr for zr in contenders if np.max(np.abs(zr - z)) > SCAN_SAME]
         jitter = np.empty((0, p))
         if options.profile_roughness:
@@ -1199,20 +1201,40 @@ def identify(
             free = [i for i, s in enumerate(specs) if s.log_sd is None]
             jitter = np.stack([z + h * np.eye(p)[i] for i in free for h in PROFILE_JITTER])
             jitter = np.clip(jitter, -Z_END, Z_END)
-        extra = np.concatenate([jitter, *(zr[None] for zr in others)])
-        extra_costs = profile_costs(extra, cost_opt) if len(extra) else np.empty(0)
+        near = np.concatenate([z[None], jitter, *(zr[None] for zr in others)])
+        per_near = _evaluate(problem, near, y0_cov)
+        costs_near = np.array([cost_of(per_near[k], near[k]) for k in range(len(near))])
+        dcost_near = costs_near[1:] - costs_near[0]
         if len(jitter):
-            jitter_costs = extra_costs[: len(jitter)]
+            jitter_costs = dcost_near[: len(jitter)]
             threshold = _profile_threshold(noise_sd, jitter_costs)
             say(
                 f"  profile roughness: Δcost rms {np.sqrt(np.mean(jitter_costs**2)):.1f} "
                 f"within 1–2 % of the optimum (Monte Carlo alone: {noise_sd:.1f})"
             )
-        rivals = _admit_rivals(profiles, others, extra_costs[len(jitter) :], threshold)
+        profile_costs = _ProfileCosts(
+            problem,
+            y0_cov,
+            cost_of,
+            per_near[: 1 + len(jitter)],
+            near[: 1 + len(jitter)],
+            threshold,
+            options.profile_screen,
+        )
+        if profile_costs.limit is not None:
+            say(
+                f"  profile values simulated with {options.profile_screen} of {n_cov} "
+                f"realisations first; set aside above Δcost {profile_costs.limit:.0f} "
+                f"(Δcost rms {profile_costs.noise:.1f} with {options.profile_screen} near the "
+                "optimum)"
+            )
+        profiles = _profile_scan(problem, z, cov, profile_costs)
+        rivals = _admit_rivals(profiles, others, dcost_near[len(jitter) :], threshold)
+        profile_costs.complete_ends(profiles, threshold)
         if others:
             say(
                 f"  {len(rivals)} of {len(others)} other candidate(s) inside the 95 % region "
-                f"(Δcost {', '.join(f'{c:.1f}' for c in extra_costs[len(jitter) :])} against "
+                f"(Δcost {', '.join(f'{c:.1f}' for c in dcost_near[len(jitter) :])} against "
                 f"{threshold:.1f})" + (": the intervals span them" if rivals else "")
             )
         for zr in rivals:
@@ -1220,7 +1242,7 @@ def identify(
             # the nuisances' ends (the free parameters' profiles now hold the rival)
             z_lo, z_hi = np.minimum(z_lo, zr - Z95 * sd), np.maximum(z_hi, zr + Z95 * sd)
 
-        bisect_ends(profiles, threshold, z, cov, cost_opt)
+        bisect_ends(profiles, threshold, z, cov, profile_costs)
         # the scanned values just outside each interval decide its ends: re-optimise the
         # other parameters there (a profile likelihood), and once more if that moved an end
         # outwards
@@ -1244,11 +1266,17 @@ def identify(
                 steps,
                 iterations=options.polish_iterations,
             )
-            for (i, t), zk, dc in zip(todo, ends, profile_costs(ends, cost_opt), strict=True):
+            for (i, t), zk, dc in zip(todo, ends, profile_costs(ends), strict=True):
                 polished.add((i, t))
                 _keep_lower(profiles[i], t, float(dc), zk)
             # a polished value that fell inside leaves a wide bracket behind it
-            bisect_ends(profiles, threshold, z, cov, cost_opt)
+            bisect_ends(profiles, threshold, z, cov, profile_costs)
+        if profile_costs.n_set_aside:
+            say(
+                f"  {profile_costs.n_set_aside} of {profile_costs.n_screened} screened profile "
+                f"points set aside after {options.profile_screen} realisations "
+                f"({profile_costs.n_completed} completed later: they end a bracket)"
+            )
         # the optimum should be the profiles' minimum (see _lower_profile_point)
         lower = _lower_profile_point(profiles, 1.645 * noise_sd)
         if lower is None:
@@ -1349,6 +1377,11 @@ PROFILE_RESOLUTION = 0.15
 PROFILE_MIN_STEP = 0.01
 #: Steps (in z) from the optimum at which ``FitOptions.profile_roughness`` measures the cost.
 PROFILE_JITTER = (-0.02, -0.01, 0.01, 0.02)
+#: :class:`_ProfileCosts` completes a profile point's realisations only where its screened
+#: Δcost is below this multiple of the profile threshold …
+SCREEN_FACTOR = 10.0
+#: … or below the threshold plus this many rms screened Δcosts near the optimum.
+SCREEN_SDS = 6.0
 
 
 def _profile_threshold(noise_sd: float, jitter_costs: np.ndarray | None = None) -> float:
@@ -1366,7 +1399,7 @@ def _profile_threshold(noise_sd: float, jitter_costs: np.ndarray | None = None) 
     return CHI2_1_95 + 1.645 * sd
 
 
-def _profile_scan(problem: _Problem, z, cov, y0, cost_of) -> tuple[dict, float]:
+def _profile_scan(problem: _Problem, z, cov, profile_costs) -> dict:
     """Cost profiles of the free parameters over their whole range.
 
     The Laplace interval is local and Gaussian, and rattle's cost is neither: a weak film is
@@ -1377,16 +1410,15 @@ def _profile_scan(problem: _Problem, z, cov, y0, cost_of) -> tuple[dict, float]:
     (:data:`SCAN_OFFSETS`). At each value the other parameters are set two ways — kept at the
     optimum, and moved along the Laplace profile path ``z + Σ[:, i]/Σ_ii · (t − z_i)`` — and
     the lower cost stands for the profile (:func:`_polish_profile` then re-optimises the
-    values that decide the interval's ends). Every point is simulated from the release states
-    ``y0`` in one batched call with the optimum (common random numbers), so the costs are
-    comparable; ``cost_of`` uses each point's own realisations for its band spread (a
-    synthetic likelihood), because the spread itself changes along the scan.
+    values that decide the interval's ends). Every point is simulated in one batch
+    (:class:`_ProfileCosts`, common random numbers with the optimum), so the costs are
+    comparable.
 
-    ``cost_of`` maps the features of every realisation (R, n, B) and z to the cost. Returns
+    ``profile_costs`` maps points (N, P) to their costs above the optimum's (N,). Returns
     ``{index: {t: (Δcost, z)}}``: for each free parameter and scanned value t (in z), the cost
-    above the optimum's and the point that attained it; and the optimum's cost.
+    above the optimum's and the point that attained it.
     """
-    zs, owners = [np.asarray(z, dtype=float)], []
+    zs, owners = [], []
     for i, spec in enumerate(problem.specs):
         if spec.log_sd is not None:
             continue
@@ -1398,15 +1430,112 @@ def _profile_scan(problem: _Problem, z, cov, y0, cost_of) -> tuple[dict, float]:
             zs += guesses
             owners += [(i, t)] * len(guesses)
     if not owners:
-        return {}, 0.0
+        return {}
     zs = np.stack(zs)
-    per = _evaluate(problem, zs, y0)  # (K, R, n, B)
-    cost = np.asarray([cost_of(per[k], zs[k]) for k in range(len(zs))])
     profiles: dict[int, dict[float, tuple]] = {}
-    for (i, t), c, zk in zip(owners, cost[1:], zs[1:], strict=True):
-        prof = profiles.setdefault(i, {float(z[i]): (0.0, zs[0])})
-        _keep_lower(prof, t, float(c - cost[0]), zk)
-    return profiles, float(cost[0])
+    for (i, t), dc, zk in zip(owners, profile_costs(zs), zs, strict=True):
+        prof = profiles.setdefault(i, {float(z[i]): (0.0, np.asarray(z, dtype=float))})
+        _keep_lower(prof, t, float(dc), zk)
+    return profiles
+
+
+class _ProfileCosts:
+    """The costs of profile points above the optimum's, simulated in two parts.
+
+    Most of a profile scan's values lie far outside the 95 % interval (Δcost in the hundreds
+    or thousands where the threshold is about 10), and the first few realisations already
+    show it. So every point is first simulated with the first ``screen`` of the covariance
+    realisations ``y0`` (R, M, 2) and costed against the optimum's same realisations; only
+    where that Δcost is below :attr:`limit` are the other M − ``screen`` simulated, and its
+    cost is then exactly that of all M at once (:meth:`_Problem.rows`: each realisation is
+    the same simulation in either part). A point set aside keeps its screened Δcost until
+    :meth:`complete_ends` finds it ending an interval's bracket: an interval end is
+    interpolated towards the first value outside, so that value must be the full cost
+    (a cost of few realisations is biased: with their own band spread from 6, a point whose
+    Δcost of 24 was 26 read 358).
+
+    The limit: :data:`SCREEN_FACTOR` × the profile ``threshold``, and at least
+    :data:`SCREEN_SDS` × :attr:`noise` above it, :attr:`noise` being the rms screened
+    Δcost of the points ``near[1:]`` near the optimum (``near[0]``; ``per_near`` their
+    features of all M realisations), whose full Δcost is within the threshold's noise of 0.
+    ``screen`` 0 (or ≥ M) simulates every point with all M (:attr:`limit` None), and so are
+    batches too small for their screening part to fill one compiled chunk (a bisection round's
+    few points, which lie near the threshold anyway).
+    """
+
+    def __init__(self, problem, y0, cost_of, per_near, near, threshold: float, screen: int):
+        self.problem, self.y0, self.cost_of = problem, y0, cost_of
+        m = y0.shape[1]
+        self.screen = screen if 0 < screen < m else 0
+        self.cost_opt = cost_of(per_near[0], near[0])
+        self.limit = self.noise = None
+        if self.screen:
+            k = self.screen
+            screened = np.array(
+                [cost_of(f[:, :k], zk) for f, zk in zip(per_near, near, strict=True)]
+            )
+            self.cost_opt_screen = screened[0]
+            d = screened[1:] - screened[0]
+            self.noise = float(np.sqrt(np.mean(d**2))) if len(d) else 0.0
+            self.limit = max(SCREEN_FACTOR * threshold, threshold + SCREEN_SDS * self.noise)
+        self.partial: dict[bytes, np.ndarray] = {}  # set aside: their screened features
+        self.n_screened = self.n_set_aside = self.n_completed = 0
+
+    def __call__(self, points) -> np.ndarray:
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        if not self.screen or len(points) * self.screen < _chunk_size():
+            # a batch whose screening part would not fill one compiled chunk is simulated
+            # whole: the padding would cost as much as the realisations it saves
+            per = _evaluate(self.problem, points, self.y0)
+            costs = [self.cost_of(f, zk) for f, zk in zip(per, points, strict=True)]
+            return np.array(costs) - self.cost_opt
+        self.n_screened += len(points)
+        first = _evaluate(self.problem, points, self.y0, realisations=np.arange(self.screen))
+        dc = np.array([self.cost_of(f, zk) for f, zk in zip(first, points, strict=True)])
+        dc -= self.cost_opt_screen
+        rest = np.flatnonzero(dc <= self.limit)
+        for j in np.flatnonzero(dc > self.limit):
+            self.partial[points[j].tobytes()] = first[j]
+        self.n_set_aside += len(points) - len(rest)
+        if len(rest):
+            dc[rest] = self._complete(points[rest], first[rest])
+        return dc
+
+    def _complete(self, points, first) -> np.ndarray:
+        """Full Δcosts of ``points`` whose first realisations' features are ``first``."""
+        more = _evaluate(
+            self.problem, points, self.y0, realisations=np.arange(self.screen, self.y0.shape[1])
+        )
+        per = np.concatenate([first, more], axis=2)
+        return np.array([self.cost_of(f, zk) for f, zk in zip(per, points, strict=True)]) - (
+            self.cost_opt
+        )
+
+    def complete_ends(self, profiles: dict, threshold: float) -> int:
+        """Give every profile interval's first value outside its full cost, in place.
+
+        A value set aside that ends a bracket (:func:`_profile_interval`) is completed; if it
+        falls inside, the next value out may be another, so this repeats until none is left.
+        Returns the number of points completed.
+        """
+        n = 0
+        while True:
+            todo, keys = [], set()
+            for i, prof in profiles.items():
+                for _, t_out in _profile_interval(prof, threshold)[1]:
+                    key = prof[t_out][1].tobytes()
+                    if key in self.partial and key not in keys:
+                        todo.append((i, t_out))
+                        keys.add(key)
+            if not todo:
+                break
+            points = np.stack([profiles[i][t][1] for i, t in todo])
+            first = np.stack([self.partial.pop(zk.tobytes()) for zk in points])
+            for (i, t), zk, dc in zip(todo, points, self._complete(points, first), strict=True):
+                profiles[i][t] = (float(dc), zk)  # the full cost, higher or lower
+            n += len(todo)
+        self.n_completed += n
+        return n
 
 
 def _profile_guesses(z, cov, i: int, t: float, near=None) -> list[np.ndarray]:
