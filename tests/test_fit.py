@@ -287,6 +287,7 @@ def test_features_do_not_depend_on_how_the_rows_are_chunked(monkeypatch, mild_re
     problem, _ = _build([mild_recording[0]], FitOptions(), np.random.default_rng(0))
     zs = np.zeros((2, len(problem.specs)))
     zs[1, 0] = 0.5  # another film half-length: other step counts in the same chunk
+    zs[1, 1] = -0.3  # and a lower drag torque: _evaluate simulates it first
     out = {}
     for rows in (24, 5, 2):
         monkeypatch.setattr(fit, "CHUNK_ROWS", rows)
@@ -297,6 +298,9 @@ def test_features_do_not_depend_on_how_the_rows_are_chunked(monkeypatch, mild_re
     np.testing.assert_allclose(out[2], out[24], rtol=1e-13, atol=0)
     assert out[24].shape == (2, 1, 6, problem.data.shape[1])
     assert not np.array_equal(out[24][0], out[24][1])  # the two points differ
+    # each point's features come back in the caller's order: as simulated one at a time
+    alone = np.concatenate([_evaluate(problem, zs[k : k + 1]) for k in range(2)])
+    np.testing.assert_allclose(alone, out[24], rtol=1e-13, atol=0)
     # a point's realisations simulated in two parts (_ProfileCosts) are the same simulations
     parts = [_evaluate(problem, zs, realisations=r) for r in ([4, 0], [1, 2, 3, 5])]
     joined = np.concatenate(parts, axis=2)[:, :, [1, 2, 3, 4, 0, 5]]

@@ -694,12 +694,22 @@ def _evaluate(problem: _Problem, zs, y0=None, realisations=None) -> np.ndarray:
     program of :func:`_chunk_size` rows (padded with repeats of the last row), so the
     simulator is compiled once however many points are asked for. ``realisations`` (indices)
     evaluates only those of the M (see :meth:`_Problem.rows`): (K, R, len(realisations), B).
+
+    A chunk waits for its slowest row, and the drag torque sets how often the gears impact
+    and so how many steps a simulation takes: the points are simulated in the order of their
+    drag torque, so that similar ones share a chunk. Measured on 128 starting points of the
+    mild shared file (2 realisations each, 2 devices): 6.1–7.2 s against 8.3–10.3 s in their
+    own order, the features identical to the last bit (a row does not depend on its chunk).
     """
-    zs = jnp.atleast_2d(jnp.asarray(zs))
+    zs = np.atleast_2d(np.asarray(zs, dtype=float))
     m = problem.y0.shape[1] if y0 is None else y0.shape[1]
     if realisations is not None:
         m = len(realisations)
-    rows = problem.rows(zs, None if y0 is None else jnp.asarray(y0), realisations)
+    drag = [s.name for s in problem.specs].index("drag_torque")
+    order = np.argsort(zs[:, drag], kind="stable")
+    rows = problem.rows(
+        jnp.asarray(zs[order]), None if y0 is None else jnp.asarray(y0), realisations
+    )
     n, c = rows[0].shape[0], _chunk_size()
     pad = -n % c
     rows = jax.tree_util.tree_map(
@@ -709,7 +719,8 @@ def _evaluate(problem: _Problem, zs, y0=None, realisations=None) -> np.ndarray:
         _features_chunk(problem, tuple(x[i : i + c] for x in rows)) for i in range(0, n + pad, c)
     ]
     out = np.concatenate([np.asarray(x) for x in chunks])[:n]
-    return out.reshape(zs.shape[0], problem.n_rec, m, -1)
+    out = out.reshape(zs.shape[0], problem.n_rec, m, -1)
+    return out[np.argsort(order)]
 
 
 @jax.custom_jvp
