@@ -19,6 +19,8 @@ from rattlefit.fit import (
     PROFILE_JITTER,
     PROFILE_MIN_STEP,
     PROFILE_RESOLUTION,
+    START_POINTS,
+    START_RANGES,
     FitOptions,
     ParameterSpec,
     _admit_rivals,
@@ -32,6 +34,7 @@ from rattlefit.fit import (
     _profile_interval,
     _profile_threshold,
     _ProfileCosts,
+    _starting_points,
     _threshold_crossing,
     identify,
     nuisance_prior,
@@ -78,8 +81,12 @@ def test_an_oil_jet_companion_identifies_the_boundary_film(mild_recording):
     # (seed 0, one device, 791 s beside another fit): a[boundary] 85.9 µm in [60.5, 103.2],
     # μ [0.321, 0.681] (prior-bound), T_b [0.0234, 0.0266], a[oil_jet] ≥ 899 µm; with one
     # polish iteration (session 20, 273 s alone, 529 s in CI): a[boundary] 85.9 µm in
-    # [61.7, 103.0], T_b [0.0236, 0.0266], a[oil_jet] ≥ 909 µm. The defaults' coverage with
-    # a companion: benchmarks/README.
+    # [61.7, 103.0], T_b [0.0236, 0.0266], a[oil_jet] ≥ 909 µm; with session 21's profile
+    # stage (one polish round, far values screened; 359 s alone): a[boundary] 85.9 µm in
+    # [63.3, 100.3], T_b [0.0236, 0.0264], a[oil_jet] ≥ 909 µm. With 64 starts instead of
+    # the 128 that three start dimensions now get, the best start cost 1919 (68 with 128)
+    # and both films missed (a[boundary] [56.9, 82.0] µm). The defaults' coverage with a
+    # companion: benchmarks/README.
     rec, truth = mild_recording
     g = rf.table2_pair("II", center_distance_mm=65.0)
     op = OperatingPoint("oil_jet", 25.0, 52.36, 5.236, 8.0)
@@ -285,6 +292,11 @@ def test_features_do_not_depend_on_how_the_rows_are_chunked(monkeypatch, mild_re
     import rattlefit.fit as fit
 
     problem, _ = _build([mild_recording[0]], FitOptions(), np.random.default_rng(0))
+    # (one recording: START_POINTS starts, the first of the longer sequence asked for)
+    starts = _starting_points(problem, None, np.random.default_rng(0))
+    assert starts.shape[0] == START_POINTS
+    more = _starting_points(problem, 2 * START_POINTS, np.random.default_rng(0))
+    np.testing.assert_array_equal(more[:START_POINTS], starts)
     zs = np.zeros((2, len(problem.specs)))
     zs[1, 0] = 0.5  # another film half-length: other step counts in the same chunk
     zs[1, 1] = -0.3  # and a lower drag torque: _evaluate simulates it first
@@ -383,6 +395,15 @@ def test_a_fit_across_lubrications_gives_each_its_film_and_shares_the_oil(
         # the shared factor 1 gives each file the oil's viscosity at its own temperature
         mu = shared_truth[name]["viscosity_Pa_s"]
         assert float(p.viscosity) == pytest.approx(mu, rel=0.01), name
+    # each film half-length is a dimension of the starts: twice the starts of one, spread
+    # over both films' ranges (log-uniform over START_RANGES, the rest at the prior centres)
+    starts = _starting_points(problem, None, np.random.default_rng(0))
+    assert starts.shape == (2 * START_POINTS, len(spec_names))
+    for i in range(3):
+        lo, hi = START_RANGES[i == 2]
+        v = np.array([problem.specs[i].value(t) for t in starts[:, i]])
+        assert lo <= v.min() < 1.5 * lo and hi / 1.5 < v.max() <= hi  # spread end to end
+    assert np.all(starts[:, 3:] == starts[0, 3:])
     # a prior on the single-lubrication name would replace nothing here: refused, not ignored
     film = ParameterSpec("a", "m", 1e-5, 1e-3)
     with pytest.raises(rf.RattlefitError, match="'a' is not a parameter of this fit"):
@@ -547,6 +568,8 @@ def test_counts_of_the_profile_stage_are_checked_at_construction():
     with pytest.raises(rf.RattlefitError, match="must be ≥ 0"):
         FitOptions(profile_rounds=-1)
     assert FitOptions(polish_iterations=1).polish_iterations == 1
+    with pytest.raises(rf.RattlefitError, match="n_starts must be ≥ 1 or None, got 0"):
+        FitOptions(n_starts=0)
 
 
 def test_rivals_below_the_threshold_join_the_profiles_and_no_others():

@@ -151,11 +151,16 @@ class FitOptions:
         basin around the truth can be narrow: on a synthetic pair I boundary recording
         (65.0 mm, 10 % at 8 Hz) the cost was 23 at the truth and above 180 at every point of
         a grid spaced by factors of 1.4 in ``drag_torque`` and 2 in ``a`` around it, and 24
-        starts never found that basin. 64 since session 21 (was 128; the first 64 of the same
-        sequence): the coverage study (seed 0, 2 devices) held 29/30 with either, the same
-        miss, and that file (its case 9) found the basin with both (χ² 44 against 47); four
+        starts never found that basin. None (the default): :data:`START_POINTS` (64) over
+        (``a``, ``drag_torque``), twice as many for each further film half-length. Until
+        session 21 it was 128 whatever the dimension. With 64 (the first 64 of the same
+        sequence) the coverage study (seed 0, 2 devices) held 29/30 as with 128, the same
+        miss, and that file (its case 9) found the basin either way (χ² 44 against 47); four
         cases reached a lower χ² with 64 (case 7 37 against 78: no longer flagged), none a
-        higher one beyond 1. The ten fits took 426 s against 465 s.
+        higher one beyond 1; the ten fits took 426 s against 465 s. But over three start
+        dimensions (a boundary file with an oil-jet companion, tests/test_fit.py) the best of
+        64 starts cost 1919 against 68 for the best of 128, and the fit ended at χ² 99 on 57
+        with both films' intervals missing their truth.
     start_realisations : realisations per start in the screening; the best
         ``n_refine`` + :data:`SCREEN_EXTRA` starts are then re-evaluated with all
         ``n_realisations``. Two are enough to tell a basin (cost differences of hundreds).
@@ -272,7 +277,7 @@ class FitOptions:
     n_realisations: int = 6
     n_noise_realisations: int = 8
     n_covariance_realisations: int = 24
-    n_starts: int = 64
+    n_starts: int | None = None
     start_realisations: int = 2
     n_refine: int = 3
     max_iterations: int = 8
@@ -333,6 +338,8 @@ class FitOptions:
         counts = ("profile_rounds", "profile_bisections", "profile_screen", "recentre_rounds")
         if any(getattr(self, k) < 0 for k in counts):
             raise RattlefitError(f"FitOptions.{', '.join(counts)} must be ≥ 0")
+        if self.n_starts is not None and self.n_starts < 1:
+            raise RattlefitError(f"FitOptions.n_starts must be ≥ 1 or None, got {self.n_starts}")
         if self.polish_iterations < 1:
             raise RattlefitError(
                 f"FitOptions.polish_iterations must be ≥ 1, got {self.polish_iterations}"
@@ -1008,6 +1015,27 @@ def _build(
     return problem, rigs
 
 
+def _starting_points(problem: _Problem, n_starts: int | None, rng) -> np.ndarray:
+    """The fit's starting points (N, P): the prior centres, with each film half-length and
+    the drag torque spread log-uniformly over :data:`START_RANGES` by a seeded scrambled
+    Sobol' sequence. ``n_starts`` None gives :data:`START_POINTS` for (a, T_b), twice as many
+    for each further film half-length (a fit across lubrications)."""
+    specs = problem.specs
+    spread = [
+        (i, START_RANGES[s.name == "drag_torque"])
+        for i, s in enumerate(specs)
+        if s.name == "drag_torque" or s.name in problem.films
+    ]
+    n = n_starts or START_POINTS * 2 ** (len(spread) - 2)
+    z_center = np.array([s.z_of(s.center) if s.center else 0.0 for s in specs])
+    starts = np.tile(z_center, (n, 1))
+    u = qmc.Sobol(d=len(spread), scramble=True, seed=rng).random_base2(math.ceil(math.log2(n)))
+    for col, (i, (lo, hi)) in enumerate(spread):
+        vals = np.exp(np.log(lo) + u[:n, col] * math.log(hi / lo))
+        starts[:, i] = [specs[i].z_of(v) for v in vals]
+    return starts
+
+
 def _release_states(problem: _Problem, z, n: int, rng) -> np.ndarray:
     """``n`` seeded release states per recording, at rest across ±90 % of the gap: (R, n, 2)."""
     c = 0.5 * np.asarray(
@@ -1056,20 +1084,9 @@ def identify(
         f"per evaluation (seed {options.seed})"
     )
 
-    # starting points: prior centres, with (a, T_b) from a seeded scrambled Sobol' sequence
     z_center = np.array([s.z_of(s.center) if s.center else 0.0 for s in specs])
-    starts = np.tile(z_center, (options.n_starts, 1))
-    # (one column per film half-length: a fit across lubrications has several)
-    spread = [
-        (i, START_RANGES[s.name == "drag_torque"])
-        for i, s in enumerate(specs)
-        if s.name == "drag_torque" or s.name in problem.films
-    ]
-    sobol = qmc.Sobol(d=len(spread), scramble=True, seed=rng)
-    u = sobol.random_base2(max(0, math.ceil(math.log2(options.n_starts))))[: options.n_starts]
-    for col, (i, (lo, hi)) in enumerate(spread):
-        vals = np.exp(np.log(lo) + u[:, col] * math.log(hi / lo))
-        starts[:, i] = [specs[i].z_of(v) for v in vals]
+    starts = _starting_points(problem, options.n_starts, rng)
+    n_starts = len(starts)
 
     def band_sigma(ens):
         return ensemble.band_sigma(
@@ -1089,7 +1106,7 @@ def identify(
 
     k_screen = min(options.start_realisations, options.n_realisations)
     say(
-        f"screening {options.n_starts} starting points with {k_screen} realisation(s) each "
+        f"screening {n_starts} starting points with {k_screen} realisation(s) each "
         "(compiling the simulator first) …"
     )
     start_mean = np.asarray(problem.mean_of(_evaluate(problem, starts, problem.y0[:, :k_screen])))
@@ -1385,6 +1402,9 @@ def identify(
 RIVAL_SCREEN = 2.0
 #: Where the starting points of (a, T_b) are spread (log-uniformly), m and N m.
 START_RANGES = ((5e-6, 2e-3), (5e-3, 0.2))  # (each film half-length, drag torque)
+#: Starting points for (a, T_b) when ``FitOptions.n_starts`` is None; twice as many for each
+#: further film half-length (a fit across lubrications).
+START_POINTS = 64
 #: Starts re-evaluated with all realisations beyond the ``n_refine`` that are refined.
 SCREEN_EXTRA = 5
 
@@ -1504,7 +1524,8 @@ class _ProfileCosts:
             d = screened[1:] - screened[0]
             self.noise = float(np.sqrt(np.mean(d**2))) if len(d) else 0.0
             self.limit = max(SCREEN_FACTOR * threshold, threshold + SCREEN_SDS * self.noise)
-        self.partial: dict[bytes, np.ndarray] = {}  # set aside: their screened features
+        self.partial: dict[bytes, tuple] = {}  # set aside: (point, screened features)
+        self.full: dict[bytes, tuple] = {}  # completed or whole: (point, Δcost)
         self.n_screened = self.n_set_aside = self.n_completed = 0
 
     def __call__(self, points) -> np.ndarray:
@@ -1514,18 +1535,24 @@ class _ProfileCosts:
             # whole: the padding would cost as much as the realisations it saves
             per = _evaluate(self.problem, points, self.y0)
             costs = [self.cost_of(f, zk) for f, zk in zip(per, points, strict=True)]
-            return np.array(costs) - self.cost_opt
+            return self._record(points, np.array(costs) - self.cost_opt)
         self.n_screened += len(points)
         first = _evaluate(self.problem, points, self.y0, realisations=np.arange(self.screen))
         dc = np.array([self.cost_of(f, zk) for f, zk in zip(first, points, strict=True)])
         dc -= self.cost_opt_screen
         rest = np.flatnonzero(dc <= self.limit)
         for j in np.flatnonzero(dc > self.limit):
-            self.partial[points[j].tobytes()] = first[j]
+            self.partial[points[j].tobytes()] = (points[j], first[j])
         self.n_set_aside += len(points) - len(rest)
         if len(rest):
-            dc[rest] = self._complete(points[rest], first[rest])
+            dc[rest] = self._record(points[rest], self._complete(points[rest], first[rest]))
         return dc
+
+    def _record(self, points, dcosts) -> np.ndarray:
+        """Keep the full Δcosts of ``points`` (for :meth:`complete_ends`); returns them."""
+        for zk, dc in zip(points, dcosts, strict=True):
+            self.full[zk.tobytes()] = (zk, float(dc))
+        return dcosts
 
     def _complete(self, points, first) -> np.ndarray:
         """Full Δcosts of ``points`` whose first realisations' features are ``first``."""
@@ -1540,26 +1567,35 @@ class _ProfileCosts:
     def complete_ends(self, profiles: dict, threshold: float) -> int:
         """Give every profile interval's first value outside its full cost, in place.
 
-        A value set aside that ends a bracket (:func:`_profile_interval`) is completed; if it
-        falls inside, the next value out may be another, so this repeats until none is left.
-        Returns the number of points completed.
+        At a value t that ends a bracket (:func:`_profile_interval`), every point set aside
+        with parameter i at t (either of the scan's guesses: the one standing may be full
+        while the other, lower in truth, read high from its few realisations) is completed,
+        and the profile takes the lowest full cost at t. If that falls inside, the next
+        value out may be another, so this repeats until none is left. Returns the number of
+        points completed.
         """
         n = 0
         while True:
-            todo, keys = [], set()
+            todo: dict[bytes, tuple[int, float]] = {}
             for i, prof in profiles.items():
                 for _, t_out in _profile_interval(prof, threshold)[1]:
-                    key = prof[t_out][1].tobytes()
-                    if key in self.partial and key not in keys:
-                        todo.append((i, t_out))
-                        keys.add(key)
+                    for key, (zk, _) in self.partial.items():
+                        if zk[i] == t_out and key not in todo:
+                            todo[key] = (i, t_out)
             if not todo:
                 break
-            points = np.stack([profiles[i][t][1] for i, t in todo])
-            first = np.stack([self.partial.pop(zk.tobytes()) for zk in points])
-            for (i, t), zk, dc in zip(todo, points, self._complete(points, first), strict=True):
-                profiles[i][t] = (float(dc), zk)  # the full cost, higher or lower
-            n += len(todo)
+            keys = list(todo)
+            points = np.stack([self.partial[k][0] for k in keys])
+            first = np.stack([self.partial.pop(k)[1] for k in keys])
+            for key, zk, dc in zip(keys, points, self._complete(points, first), strict=True):
+                self.full[key] = (zk, float(dc))
+            for i, t in set(todo.values()):
+                full = [(dc, zk) for zk, dc in self.full.values() if zk[i] == t]
+                standing = profiles[i][t]
+                if standing[1].tobytes() not in todo:  # a full cost (a rival, a polish)
+                    full.append(standing)
+                profiles[i][t] = min(full, key=lambda v: v[0])
+            n += len(keys)
         self.n_completed += n
         return n
 
