@@ -1015,6 +1015,11 @@ def _build(
     return problem, rigs
 
 
+def _prior_centre(specs) -> np.ndarray:
+    """z of every parameter's prior centre (0, the middle of the range, where it has none)."""
+    return np.array([s.z_of(s.center) if s.center else 0.0 for s in specs])
+
+
 def _starting_points(problem: _Problem, n_starts: int | None, rng) -> np.ndarray:
     """The fit's starting points (N, P): the prior centres, with each film half-length and
     the drag torque spread log-uniformly over :data:`START_RANGES` by a seeded scrambled
@@ -1027,8 +1032,7 @@ def _starting_points(problem: _Problem, n_starts: int | None, rng) -> np.ndarray
         if s.name == "drag_torque" or s.name in problem.films
     ]
     n = n_starts or START_POINTS * 2 ** (len(spread) - 2)
-    z_center = np.array([s.z_of(s.center) if s.center else 0.0 for s in specs])
-    starts = np.tile(z_center, (n, 1))
+    starts = np.tile(_prior_centre(specs), (n, 1))
     u = qmc.Sobol(d=len(spread), scramble=True, seed=rng).random_base2(math.ceil(math.log2(n)))
     for col, (i, (lo, hi)) in enumerate(spread):
         vals = np.exp(np.log(lo) + u[:n, col] * math.log(hi / lo))
@@ -1084,7 +1088,7 @@ def identify(
         f"per evaluation (seed {options.seed})"
     )
 
-    z_center = np.array([s.z_of(s.center) if s.center else 0.0 for s in specs])
+    z_center = _prior_centre(specs)
     starts = _starting_points(problem, options.n_starts, rng)
     n_starts = len(starts)
 
@@ -1517,9 +1521,7 @@ class _ProfileCosts:
         self.limit = self.noise = None
         if self.screen:
             k = self.screen
-            screened = np.array(
-                [cost_of(f[:, :k], zk) for f, zk in zip(per_near, near, strict=True)]
-            )
+            screened = self._costs(per_near[:, :, :k], near)
             self.cost_opt_screen = screened[0]
             d = screened[1:] - screened[0]
             self.noise = float(np.sqrt(np.mean(d**2))) if len(d) else 0.0
@@ -1533,36 +1535,35 @@ class _ProfileCosts:
         if not self.screen or len(points) * self.screen < _chunk_size():
             # a batch whose screening part would not fill one compiled chunk is simulated
             # whole: the padding would cost as much as the realisations it saves
-            per = _evaluate(self.problem, points, self.y0)
-            costs = [self.cost_of(f, zk) for f, zk in zip(per, points, strict=True)]
-            return self._record(points, np.array(costs) - self.cost_opt)
+            return self._full(points, _evaluate(self.problem, points, self.y0))
         self.n_screened += len(points)
         first = _evaluate(self.problem, points, self.y0, realisations=np.arange(self.screen))
-        dc = np.array([self.cost_of(f, zk) for f, zk in zip(first, points, strict=True)])
-        dc -= self.cost_opt_screen
+        dc = self._costs(first, points) - self.cost_opt_screen
         rest = np.flatnonzero(dc <= self.limit)
         for j in np.flatnonzero(dc > self.limit):
             self.partial[points[j].tobytes()] = (points[j], first[j])
         self.n_set_aside += len(points) - len(rest)
         if len(rest):
-            dc[rest] = self._record(points[rest], self._complete(points[rest], first[rest]))
+            dc[rest] = self._complete(points[rest], first[rest])
         return dc
 
-    def _record(self, points, dcosts) -> np.ndarray:
-        """Keep the full Δcosts of ``points`` (for :meth:`complete_ends`); returns them."""
-        for zk, dc in zip(points, dcosts, strict=True):
-            self.full[zk.tobytes()] = (zk, float(dc))
-        return dcosts
+    def _costs(self, per, points) -> np.ndarray:
+        return np.array([self.cost_of(f, zk) for f, zk in zip(per, points, strict=True)])
+
+    def _full(self, points, per) -> np.ndarray:
+        """Δcosts of ``points`` from the features ``per`` of all M realisations, kept for
+        :meth:`complete_ends`."""
+        dc = self._costs(per, points) - self.cost_opt
+        for zk, d in zip(points, dc, strict=True):
+            self.full[zk.tobytes()] = (zk, float(d))
+        return dc
 
     def _complete(self, points, first) -> np.ndarray:
         """Full Δcosts of ``points`` whose first realisations' features are ``first``."""
         more = _evaluate(
             self.problem, points, self.y0, realisations=np.arange(self.screen, self.y0.shape[1])
         )
-        per = np.concatenate([first, more], axis=2)
-        return np.array([self.cost_of(f, zk) for f, zk in zip(per, points, strict=True)]) - (
-            self.cost_opt
-        )
+        return self._full(points, np.concatenate([first, more], axis=2))
 
     def complete_ends(self, profiles: dict, threshold: float) -> int:
         """Give every profile interval's first value outside its full cost, in place.
@@ -1587,8 +1588,7 @@ class _ProfileCosts:
             keys = list(todo)
             points = np.stack([self.partial[k][0] for k in keys])
             first = np.stack([self.partial.pop(k)[1] for k in keys])
-            for key, zk, dc in zip(keys, points, self._complete(points, first), strict=True):
-                self.full[key] = (zk, float(dc))
+            self._complete(points, first)
             for i, t in set(todo.values()):
                 full = [(dc, zk) for zk, dc in self.full.values() if zk[i] == t]
                 standing = profiles[i][t]
