@@ -23,6 +23,8 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
+from ._util import array_namespace
+
 #: Robust scale of the median absolute deviation of a Gaussian.
 MAD_TO_SD = 1.4826
 #: Fewest realisations for which regimes are told apart (the median and MAD of fewer are
@@ -37,29 +39,32 @@ def regime_weights(features, threshold: float | None, *, scale_floor: float = 0.
     the bands, each in units of the band's robust spread (``1.4826 · MAD``, at least
     ``scale_floor``, log10 units), exceeds ``threshold``; a Gaussian realisation has about 1.
     Never more than half are set aside (the median's breakdown point), and nothing is with
-    fewer than :data:`MIN_FOR_REGIMES` realisations or with ``threshold=None``. Pure jnp, so
-    that it traces inside the fit's residual.
+    fewer than :data:`MIN_FOR_REGIMES` realisations or with ``threshold=None``. Traces inside
+    the fit's residual; on concrete features it computes in numpy (see
+    :func:`~rattlefit._util.array_namespace`).
     """
-    f = jnp.asarray(features)
+    xp = array_namespace(features)
+    f = xp.asarray(features)
     n = f.shape[-2]
     if threshold is None or n < MIN_FOR_REGIMES:
-        return jnp.ones(f.shape[:-1], dtype=f.dtype)
-    med = jnp.median(f, axis=-2, keepdims=True)
-    mad = MAD_TO_SD * jnp.median(jnp.abs(f - med), axis=-2, keepdims=True)
-    d2 = jnp.mean(((f - med) / jnp.maximum(mad, scale_floor)) ** 2, axis=-1)
+        return xp.ones(f.shape[:-1], dtype=f.dtype)
+    med = xp.median(f, axis=-2, keepdims=True)
+    mad = MAD_TO_SD * xp.median(xp.abs(f - med), axis=-2, keepdims=True)
+    d2 = xp.mean(((f - med) / xp.maximum(mad, scale_floor)) ** 2, axis=-1)
     keep = d2 <= threshold
-    enough = 2 * jnp.sum(keep, axis=-1, keepdims=True) >= n
-    return jnp.where(enough, keep, True).astype(f.dtype)
+    enough = 2 * xp.sum(keep, axis=-1, keepdims=True) >= n
+    return xp.where(enough, keep, True).astype(f.dtype)
 
 
 def ensemble_mean(features, threshold: float | None):
-    """Mean features of the common regime (see :func:`regime_weights`): (..., B)."""
-    f = jnp.asarray(features)
+    """Mean features of the common regime (see :func:`regime_weights`): (..., B); numpy for
+    concrete features, like :func:`regime_weights`."""
+    f = array_namespace(features).asarray(features)
     return _weighted_mean(f, regime_weights(f, threshold))
 
 
 def _weighted_mean(f, w):
-    return jnp.sum(w[..., None] * f, axis=-2) / jnp.sum(w, axis=-1)[..., None]
+    return (w[..., None] * f).sum(axis=-2) / w.sum(axis=-1)[..., None]
 
 
 def dither_design(n: int, offsets: np.ndarray | None) -> np.ndarray:
@@ -130,7 +135,7 @@ def band_sigma(
     weights = np.asarray(regime_weights(ens, threshold))
     dev, dof = chaotic_part(ens, offsets, weights)
     var = np.sum(dev**2, axis=1) / dof[:, None] * (1.0 + 1.0 / m)
-    mean = np.asarray(_weighted_mean(jnp.asarray(ens), jnp.asarray(weights)))
+    mean = _weighted_mean(ens, weights)
     share = np.asarray(noise_floor)[:, None] / 10.0**mean
     var = var + (floor_sd * np.clip(share, 0.0, 1.0)) ** 2 + discrepancy**2
     return jnp.asarray(np.sqrt(np.maximum(var, floor**2)))

@@ -59,10 +59,11 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 from scipy import stats
+from scipy.special import expit
 from scipy.stats import qmc
 
 from . import ensemble
-from ._util import stamped
+from ._util import array_namespace, stamped
 from .ensemble import chaotic_part, ensemble_mean, regime_weights, shrunk_correlation
 from .errors import RattlefitError
 from .model import DEFAULT_MIN_FILM, Effect, RattleModel, RattleParams
@@ -104,7 +105,8 @@ class ParameterSpec:
         return math.log(self.upper / self.lower)
 
     def value(self, z):
-        return self.lower * jnp.exp(self.log_range * jax.nn.sigmoid(z))
+        xp = array_namespace(z)
+        return self.lower * xp.exp(self.log_range * _sigmoid(z))
 
     def z_of(self, value: float) -> float:
         u = (math.log(value) - math.log(self.lower)) / self.log_range
@@ -113,8 +115,13 @@ class ParameterSpec:
 
     def dlog_dz(self, z):
         """d(log value)/dz: converts a step in log value into a step in z."""
-        s = jax.nn.sigmoid(z)
+        s = _sigmoid(z)
         return self.log_range * s * (1 - s)
+
+
+def _sigmoid(z):
+    """The logistic function, in JAX while ``z`` is traced, else in numpy (scipy's expit)."""
+    return jax.nn.sigmoid(z) if array_namespace(z) is jnp else expit(z)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -579,28 +586,29 @@ class _Problem(eqx.Module):
         full set (its release state, its dither centred over all M, its encoder phase), so
         that a point's realisations can be simulated in parts (:class:`_ProfileCosts`).
         """
-        y0 = self.y0 if y0 is None else y0
+        xp = array_namespace(zs, self.y0)  # numpy outside a trace: nothing to compile
+        y0 = xp.asarray(self.y0 if y0 is None else y0)
         k, m = zs.shape[0], y0.shape[1]
         idx = np.arange(m) if realisations is None else np.asarray(realisations)
         n = idx.shape[0]
         return (
-            jnp.repeat(zs, self.n_rec * n, axis=0),
-            jnp.tile(jnp.repeat(jnp.arange(self.n_rec), n), k),
-            jnp.tile(y0[:, idx].reshape(-1, 2), (k, 1)),
-            jnp.tile(self._dither(m)[idx], (k * self.n_rec, 1)),
-            jnp.tile(self.encoder_phase[:m][idx], (k * self.n_rec, 1)),
+            xp.repeat(xp.asarray(zs), self.n_rec * n, axis=0),
+            xp.tile(xp.repeat(xp.arange(self.n_rec), n), k),
+            xp.tile(y0[:, idx].reshape(-1, 2), (k, 1)),
+            xp.tile(self._dither(m, xp)[idx], (k * self.n_rec, 1)),
+            xp.tile(xp.asarray(self.encoder_phase)[:m][idx], (k * self.n_rec, 1)),
         )
 
-    def _dither(self, m):
+    def _dither(self, m, xp=np):
         """The first ``m`` realisations' log-offsets (m, P), centred: their mean is zero, so
         that the dither smooths the mean features without shifting them."""
-        d = self.dither[:m]
+        d = xp.asarray(self.dither)[:m]
         return d - d.mean(axis=0)
 
     def dither_offsets(self, m) -> np.ndarray:
         """The dithered columns of :meth:`_dither` (m, q), for
         :func:`~rattlefit.ensemble.chaotic_part`."""
-        d = np.asarray(self._dither(m))
+        d = self._dither(m)
         return d[:, np.any(d != 0, axis=0)]
 
     def features_of_rows(self, rows):
@@ -648,26 +656,45 @@ class _Problem(eqx.Module):
         return ensemble_mean(features, self.regime_threshold)
 
     def prior_rows(self, z):
+        """The residual's prior rows at ``z``: ``(log v − log center) / log_sd`` of every
+        parameter with a prior."""
+        xp = array_namespace(z)
         rows = [
-            (jnp.log(s.value(z[i])) - math.log(s.center)) / s.log_sd
+            (xp.log(s.value(z[i])) - math.log(s.center)) / s.log_sd
             for i, s in enumerate(self.specs)
             if s.log_sd is not None
         ]
-        return jnp.stack(rows) if rows else jnp.zeros((0,))
+        return xp.stack(rows) if rows else xp.zeros((0,))
+
+    def prior_jacobian(self, z):
+        """d :meth:`prior_rows` / dz (n_prior, P): each row the prior's parameter's
+        ``dlog_dz / log_sd``."""
+        xp = array_namespace(z)
+        eye = xp.eye(len(self.specs))
+        rows = [
+            eye[i] * (s.dlog_dz(z[i]) / s.log_sd)
+            for i, s in enumerate(self.specs)
+            if s.log_sd is not None
+        ]
+        return xp.stack(rows) if rows else xp.zeros((0, len(self.specs)))
 
     def data_rows(self, mean_features):
-        return ((self.data - mean_features) / self.sigma).reshape(-1)
+        """The residual's data rows ``(data − mean) / σ`` (R·B,)."""
+        xp = array_namespace(mean_features, self.data, self.sigma)
+        return ((xp.asarray(self.data) - mean_features) / xp.asarray(self.sigma)).reshape(-1)
 
     def fd_steps(self, z):
         """Steps in z that change each parameter's log by its ``fd_log_step``."""
-        return jnp.stack([s.fd_log_step / s.dlog_dz(z[i]) for i, s in enumerate(self.specs)])
+        xp = array_namespace(z)
+        return xp.stack([s.fd_log_step / s.dlog_dz(z[i]) for i, s in enumerate(self.specs)])
 
 
 def _fd_points(z, h, *, central: bool):
     """The points of a finite-difference Jacobian at ``z`` with steps ``h``: (1+P or 1+2P, P)."""
-    eye = jnp.eye(z.shape[0])
+    xp = array_namespace(z, h)
+    eye = xp.eye(z.shape[0])
     points = [z[None], z + h[:, None] * eye] + ([z - h[:, None] * eye] if central else [])
-    return jnp.concatenate(points)
+    return xp.concatenate(points)
 
 
 def _fd_jacobian(problem: _Problem, z, h, feats, *, central: bool):
@@ -675,12 +702,13 @@ def _fd_jacobian(problem: _Problem, z, h, feats, *, central: bool):
     ``feats`` (K, R, B) at :func:`_fd_points`: forward differences when ``central`` is False,
     else central. The prior rows are differentiated exactly.
     """
+    xp = array_namespace(z, h, feats, problem.sigma)
     p = z.shape[0]
     lower = feats[p + 1 :] if central else feats[0][None]
     d_mean = (feats[1 : p + 1] - lower) / ((2 if central else 1) * h[:, None, None])
-    j_data = -(d_mean / problem.sigma[None]).reshape(p, -1).T
-    jac = jnp.concatenate([j_data, jax.jacfwd(problem.prior_rows)(z)])
-    r = jnp.concatenate([problem.data_rows(feats[0]), problem.prior_rows(z)])
+    j_data = -(d_mean / xp.asarray(problem.sigma)[None]).reshape(p, -1).T
+    jac = xp.concatenate([j_data, problem.prior_jacobian(z)])
+    r = xp.concatenate([problem.data_rows(feats[0]), problem.prior_rows(z)])
     return r, jac
 
 
@@ -729,14 +757,10 @@ def _evaluate(problem: _Problem, zs, y0=None, realisations=None) -> np.ndarray:
         m = len(realisations)
     drag = [s.name for s in problem.specs].index("drag_torque")
     order = np.argsort(zs[:, drag], kind="stable")
-    rows = problem.rows(
-        jnp.asarray(zs[order]), None if y0 is None else jnp.asarray(y0), realisations
-    )
+    rows = problem.rows(zs[order], None if y0 is None else np.asarray(y0), realisations)
     n, c = rows[0].shape[0], _chunk_size()
     pad = -n % c
-    rows = jax.tree_util.tree_map(
-        lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], pad, axis=0)]), rows
-    )
+    rows = [np.concatenate([x, np.repeat(x[-1:], pad, axis=0)]) for x in rows]
     chunks = [
         _features_chunk(problem, tuple(x[i : i + c] for x in rows)) for i in range(0, n + pad, c)
     ]
@@ -776,7 +800,7 @@ def _residuals(problem: _Problem, zs, mean=None) -> np.ndarray:
         mean = np.asarray(problem.mean_of(_evaluate(problem, zs)))
     return np.stack(
         [
-            np.concatenate([problem.data_rows(mean[k]), problem.prior_rows(jnp.asarray(zs[k]))])
+            np.concatenate([problem.data_rows(mean[k]), problem.prior_rows(zs[k])])
             for k in range(len(zs))
         ]
     )
@@ -801,7 +825,7 @@ def _central_jacobian(problem: _Problem, z, *, scale: float, y0):
     estimated from the spread of the n paired differences: the returned ``noise`` (P, N, N)
     holds the covariance of each column's data rows (N = R·B), in residual units.
     """
-    z = jnp.asarray(z)
+    z = np.asarray(z, dtype=float)
     p = z.shape[0]
     h = problem.fd_steps(z) * scale
     per = _evaluate(problem, _fd_points(z, h, central=True), y0)  # (K, R, n, B)
@@ -1004,7 +1028,7 @@ def _build(
         floors=jnp.asarray([r.noise_floor for r in rigs]),
         viscosities=jnp.asarray([r.viscosity for r in rigs]),
         data=jnp.asarray(np.stack(data)),
-        sigma=jnp.ones((len(rigs), len(first.bands.centers))),
+        sigma=jnp.asarray(np.ones((len(rigs), len(first.bands.centers)))),
         specs=specs,
         bands=first.bands,
         quantise=options.quantisation == "encoders",
@@ -1105,7 +1129,7 @@ def identify(
         )
 
     say("estimating the run-to-run spread of the features …")
-    ens = _ensemble(problem, jnp.asarray(z_center), options.n_noise_realisations, rng)
+    ens = _ensemble(problem, z_center, options.n_noise_realisations, rng)
     sigma = band_sigma(ens)
 
     k_screen = min(options.start_realisations, options.n_realisations)
@@ -1119,7 +1143,7 @@ def identify(
     # rattle scatters more than mild): the weights are re-estimated at the best start and
     # the starts re-ranked with them (their features are kept, so this costs no simulation)
     say("re-estimating the spread at the best start …")
-    best = jnp.asarray(starts[np.argmin(costs)])
+    best = starts[np.argmin(costs)]
     ens = _ensemble(problem, best, options.n_noise_realisations, rng)
     sigma = band_sigma(ens)
     problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
@@ -1201,7 +1225,7 @@ def identify(
         # estimated elsewhere nor excused by a wide one (the log-determinant term)
         sig = np.asarray(band_sigma(per))
         r = ((np.asarray(problem.data) - np.asarray(problem.mean_of(per))) / sig).reshape(-1)
-        prior = np.asarray(problem.prior_rows(jnp.asarray(zk)))
+        prior = problem.prior_rows(np.asarray(zk))
         return float(noise.quadratic(r) + 2 * np.sum(np.log(sig)) + np.sum(prior**2))
 
     def bisect_ends(profiles, threshold, zk, cov, profile_costs):
@@ -1305,7 +1329,7 @@ def identify(
                 break
             say(f"re-optimising the other parameters at {len(todo)} profile value(s) …")
             starts = np.stack([profiles[i][t][1] for i, t in todo])
-            steps = np.stack([np.asarray(problem.fd_steps(jnp.asarray(zk))) for zk in starts])
+            steps = np.stack([problem.fd_steps(zk) for zk in starts])
             ends = _polish_profile(
                 lambda pts: _residuals(problem, pts),
                 starts,
@@ -1347,7 +1371,7 @@ def identify(
         estimates[s.name] = _estimate(s, z[i], z_lo[i], z_hi[i])
     # report the viscosity in Pa s at the first recording's temperature
     vs = estimates.pop("viscosity_scale")
-    mu0 = float(problem.viscosities[0])
+    mu0 = float(np.asarray(problem.viscosities)[0])
     estimates["viscosity"] = ParameterEstimate(
         "viscosity",
         "Pa s",
