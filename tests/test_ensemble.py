@@ -67,3 +67,22 @@ def test_band_sigma_is_the_spread_of_the_common_regime():
     expected = sd * np.sqrt(1 + 1 / 6)
     assert np.mean(robust**2) == pytest.approx(expected**2, rel=0.03)
     assert np.mean(plain**2) > 3 * expected**2
+
+
+def test_the_traced_path_is_the_host_path():
+    # the fit's residual traces regime_weights and ensemble_mean inside its compiled loop,
+    # while its host-side costs and band spreads call them on concrete arrays in numpy: both
+    # must set the same realisations aside and give the same mean
+    import jax
+
+    rng = np.random.default_rng(4)
+    ens = _gaussian(rng, 50)
+    ens[:, 2] += 0.4
+    ens[::3, 4] -= 0.5  # a second excursion in some trials
+    w_host = regime_weights(ens, THRESHOLD)
+    assert isinstance(w_host, np.ndarray)  # concrete in, numpy out: nothing compiled
+    w_traced = jax.jit(lambda f: regime_weights(f, THRESHOLD))(ens)
+    np.testing.assert_array_equal(np.asarray(w_traced), w_host)
+    assert 0 < np.mean(w_host == 0) < 0.5  # the test sees both kinds
+    m_traced = jax.jit(lambda f: ensemble_mean(f, THRESHOLD))(ens)
+    np.testing.assert_allclose(np.asarray(m_traced), ensemble_mean(ens, THRESHOLD), rtol=1e-14)

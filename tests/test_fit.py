@@ -319,6 +319,69 @@ def test_features_do_not_depend_on_how_the_rows_are_chunked(monkeypatch, mild_re
     np.testing.assert_allclose(joined, out[24], rtol=1e-13, atol=0)
 
 
+def test_host_side_arithmetic_compiles_nothing_and_equals_its_traced_form(mild_recording, caplog):
+    # A fit's host side (costs, band spreads, finite-difference points, the rows of an
+    # evaluation) runs on concrete arrays of ever new shapes; in eager jax.numpy each new shape
+    # compiled a program (572 on a cold identify of the mild file). It runs in numpy, and must
+    # give what the same functions give traced inside the Levenberg–Marquardt loop.
+    import jax
+
+    from rattlefit.fit import _costs, _fd_jacobian, _fd_points
+
+    problem, _ = _build([mild_recording[0]], FitOptions(), np.random.default_rng(0))
+    rng = np.random.default_rng(5)
+    p, (n_rec, n_band) = len(problem.specs), problem.data.shape
+    z = rng.normal(scale=0.7, size=p)
+    h = problem.fd_steps(z)
+    pts = _fd_points(z, h, central=True)
+    per = np.asarray(problem.data)[None, :, None] + 0.1 * rng.normal(
+        size=(len(pts), n_rec, 6, n_band)
+    )
+    per[:, :, 3] += 1.0  # one realisation in another regime: set aside on both sides
+
+    def host():
+        feats = problem.mean_of(per)
+        r, jac = _fd_jacobian(problem, z, h, feats, central=True)
+        sig = _band_sigma(per[0], 6, 0.02, np.asarray(problem.floors), 0.1, threshold=9.0)
+        rows = problem.rows(pts[:2], realisations=[4, 1])
+        cost = _costs(problem, pts[:2], feats[:2])
+        return r, jac, feats, np.asarray(sig), rows, cost, problem.fd_steps(z)
+
+    caplog.set_level("WARNING", logger="jax")
+    with jax.log_compiles(True):
+        got = host()
+    compiled = [r.getMessage() for r in caplog.records if "Compiling" in r.getMessage()]
+    assert compiled == []
+    assert all(isinstance(x, np.ndarray) for x in jax.tree_util.tree_leaves(got))
+
+    @jax.jit
+    def traced(z, per):
+        h = problem.fd_steps(z)
+        r, jac = _fd_jacobian(problem, z, h, problem.mean_of(per), central=True)
+        return (
+            r,
+            jac,
+            jax.jacfwd(problem.prior_rows)(z),
+            problem.rows(_fd_points(z, h, central=True)[:2]),
+        )
+
+    r, jac, prior_jac, rows = traced(jnp.asarray(z), jnp.asarray(per))
+    np.testing.assert_allclose(got[0], r, rtol=1e-12)
+    np.testing.assert_allclose(got[1], jac, rtol=1e-9, atol=1e-12)
+    # the prior rows' analytic Jacobian is their derivative
+    n_prior = prior_jac.shape[0]
+    assert n_prior == sum(s.log_sd is not None for s in problem.specs) > 0
+    np.testing.assert_allclose(got[1][-n_prior:], prior_jac, rtol=1e-12, atol=1e-15)
+    all_rows = problem.rows(pts[:2])
+    for a, b in zip(all_rows, rows, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-15)
+    # the chosen realisations are those of the full set, in the order asked for
+    m = problem.y0.shape[1]
+    k_of = np.arange(2 * m).reshape(2, m)[:, [4, 1]].reshape(-1)
+    for a, b in zip(got[4], all_rows, strict=True):
+        np.testing.assert_array_equal(a, np.asarray(b)[k_of])
+
+
 def test_profile_points_far_outside_are_set_aside_after_a_few_realisations(mild_recording):
     # _ProfileCosts simulates each point with the first `screen` realisations, and the rest
     # only where its Δcost is not already far above the threshold. A completed point's cost
