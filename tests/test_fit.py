@@ -98,8 +98,12 @@ def test_an_oil_jet_companion_identifies_the_boundary_film(mild_recording):
     del truth["a"]
     assert not _misses(result, truth), ("(lower, truth, upper):", _misses(result, truth))
     a = result.parameters["a[boundary]"]
-    # issue 3: where a is reported identified, the estimate lands within 20 % of the truth
-    assert a.identified and abs(a.estimate / truth["a[boundary]"] - 1) < 0.2, a
+    # the companion narrows a[boundary] from the single fit's factor 5–12 to below 2 …
+    assert a.bound in (None, "interval") and a.upper / a.lower < 2.0, a
+    # … and issue 3: where a is reported identified (a factor ≤ 1.5), the estimate lands
+    # within 20 % of the truth (session 21: 85.9 µm in [63.3, 100.3], a factor 1.58)
+    if a.identified:
+        assert abs(a.estimate / truth["a[boundary]"] - 1) < 0.2, a
     assert result.parameters["a[oil_jet]"].bound == "lower"  # saturated: a bound, no number
     doc = result.to_json()
     assert list(doc["parameters"])[:4] == ["a[boundary]", "a[oil_jet]", "drag_torque", "viscosity"]
@@ -476,14 +480,16 @@ def test_a_fit_across_lubrications_gives_each_its_film_and_shares_the_oil(
 def test_estimate_reports_bounds_and_identification():
     a = ParameterSpec("a", "m", 1e-6, 5e-3)
     z = a.z_of
-    # two-sided and narrower than a factor 2: identified, with an estimate
-    e = _estimate(a, z(1e-4), z(0.8e-4), z(1.4e-4))
+    # two-sided and narrower than a factor 1.5 (about ±20 %): identified, with an estimate
+    e = _estimate(a, z(1e-4), z(0.85e-4), z(1.25e-4))
     assert e.identified and e.bound is None and e.estimate == pytest.approx(1e-4)
-    assert (e.lower, e.upper) == pytest.approx((0.8e-4, 1.4e-4))
-    # two-sided but wider: the interval, no estimate
-    e = _estimate(a, z(1e-4), z(0.4e-4), z(2.5e-4))
-    assert (e.identified, e.bound, e.estimate) == (False, "interval", None)
-    assert (e.lower, e.upper) == pytest.approx((0.4e-4, 2.5e-4))
+    assert (e.lower, e.upper) == pytest.approx((0.85e-4, 1.25e-4))
+    # two-sided but wider: the interval, no estimate (a factor 1.75 is good to about ±30 %,
+    # not to issue 3's 20 %)
+    for lo, hi in ((0.8e-4, 1.4e-4), (0.4e-4, 2.5e-4)):
+        e = _estimate(a, z(1e-4), z(lo), z(hi))
+        assert (e.identified, e.bound, e.estimate) == (False, "interval", None)
+        assert (e.lower, e.upper) == pytest.approx((lo, hi))
     # into the lower end of a free parameter's range: an upper bound, and the lower reads 0
     e = _estimate(a, z(1e-5), -8.0, z(5e-5))
     assert (e.bound, e.lower, e.estimate) == ("upper", 0.0, None)
@@ -498,6 +504,26 @@ def test_estimate_reports_bounds_and_identification():
     assert (e.identified, e.bound) == (False, "prior")
     e = _estimate(v, v.z_of(1.0), v.z_of(0.9), v.z_of(1.1))
     assert e.identified and e.estimate == pytest.approx(1.0)
+    # … and, like any parameter, to about ±20 %: within half the prior's width, but wider
+    e = _estimate(v, v.z_of(1.0), v.z_of(0.8), v.z_of(1.25))
+    assert (e.identified, e.bound) == (False, "interval")
+
+
+def test_an_identified_estimate_lands_within_20_percent_as_often_as_the_interval_holds():
+    # issue 3: where a is reported identified, the estimate lands within 20 % of the truth.
+    # With calibrated 95 % intervals whose log half-width is w, the log error of the estimate
+    # is N(0, w/1.96); at the widest identified interval it must stay within 20 % at least as
+    # often as the coverage aim (90 %). Checked by simulation, not by the formula of the
+    # constant's comment.
+    from rattlefit.fit import IDENTIFIED_RATIO
+
+    rng = np.random.default_rng(0)
+    sd = np.log(IDENTIFIED_RATIO) / (2 * 1.96)
+    est = np.exp(rng.normal(scale=sd, size=200_000))  # truth 1
+    assert np.mean(np.abs(est - 1) <= 0.2) >= 0.9
+    # and the factor 2 used before would not do
+    est2 = np.exp(rng.normal(scale=np.log(2.0) / (2 * 1.96), size=200_000))
+    assert np.mean(np.abs(est2 - 1) <= 0.2) < 0.8
 
 
 def test_debiased_information_removes_the_jacobian_noise():

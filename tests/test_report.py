@@ -12,10 +12,11 @@ from rattlefit.report import format_table
 def _result(chi2, dof, chi2_recordings=(), recordings=()):
     a = ParameterEstimate("a", "m", 8.5e-5, 6e-5, 1.1e-4, True)
     tb = ParameterEstimate("drag_torque", "N m", None, 0.0, 0.05, False, "upper")
+    mu = ParameterEstimate("viscosity", "Pa s", None, 0.3, 0.6, False, "interval")
     return FitResult(
-        parameters={"a": a, "drag_torque": tb},
-        correlation=np.eye(2),
-        names=["a", "drag_torque"],
+        parameters={"a": a, "drag_torque": tb, "viscosity": mu},
+        correlation=np.eye(3),
+        names=["a", "drag_torque", "viscosity"],
         chi2=chi2,
         dof=dof,
         n_iterations=3,
@@ -25,8 +26,8 @@ def _result(chi2, dof, chi2_recordings=(), recordings=()):
         wall_time=1.0,
         recordings=list(recordings),
         options=FitOptions(),
-        z=np.zeros(2),
-        covariance_z=np.eye(2),
+        z=np.zeros(3),
+        covariance_z=np.eye(3),
         measured_features=[],
         fitted_features=[],
         sigma=[],
@@ -47,6 +48,8 @@ def test_table_warns_only_about_a_poor_fit():
     assert "warning" not in good
     assert "0.085" in good and "[0.06, 0.11]" in good  # mm
     assert "≤ 0.05" in good and "upper bound only" in good
+    # two-sided but wider than an identified interval: how much wider is said
+    assert "[0.3, 0.6]" in good and "interval too wide (×2.00 > ×1.5)" in good
     bad = _result(120.0, 28)
     assert bad.poor_fit and bad.to_json()["fit"]["poor_fit"] is True
     text = format_table(bad)

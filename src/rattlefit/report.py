@@ -13,7 +13,7 @@ import numpy as np
 
 from ._util import atomic_write
 from .diagnose import MISSED_Z, Diagnosis
-from .fit import FitResult
+from .fit import IDENTIFIED_RATIO, FitResult
 from .recording import Recording
 from .rig import setup
 from .sample import Posterior
@@ -40,7 +40,11 @@ def format_table(result: FitResult) -> str:
         elif p.bound in ("interval", "prior"):
             est = "—"
             ci = f"[{p.lower * mult:.4g}, {p.upper * mult:.4g}]"
-            ident = "no: interval too wide" if p.bound == "interval" else "no: prior-dominated"
+            ident = (
+                f"no: interval too wide (×{p.upper / p.lower:.2f} > ×{IDENTIFIED_RATIO})"
+                if p.bound == "interval"
+                else "no: prior-dominated"
+            )
         else:
             est, ci, ident = "—", f"[{p.lower * mult:.4g}, {p.upper * mult:.4g}]", "no"
         rows.append((name, est, ci, unit, ident))
