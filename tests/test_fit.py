@@ -29,6 +29,7 @@ from rattlefit.fit import (
     _debiased_information,
     _estimate,
     _evaluate,
+    _lm_steps,
     _lower_profile_point,
     _polish_profile,
     _profile_interval,
@@ -659,6 +660,13 @@ def test_counts_of_the_profile_stage_are_checked_at_construction():
     assert FitOptions(polish_iterations=1).polish_iterations == 1
     with pytest.raises(rf.RattlefitError, match="n_starts must be ≥ 1 or None, got 0"):
         FitOptions(n_starts=0)
+    with pytest.raises(rf.RattlefitError, match="max_iterations must be ≥ 1 or None, got 0"):
+        FitOptions(max_iterations=0)
+    # Levenberg–Marquardt steps: 8 per recording by default (a joint fit's iterate moves
+    # longer), or what was asked for
+    assert [_lm_steps(FitOptions(), n) for n in (1, 2, 3)] == [8, 16, 24]
+    assert _lm_steps(FitOptions(max_iterations=5), 2) == 5
+    assert _lm_steps(FitOptions.quick(), 2) == 3
 
 
 def test_rivals_below_the_threshold_join_the_profiles_and_no_others():
