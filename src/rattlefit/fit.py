@@ -182,7 +182,10 @@ class FitOptions:
         devices, session 22): with 8 steps the joint optimum cost 161 (χ² 101 on 58), two
         candidates were inside the 95 % region and the joint ``T_b`` interval spanned 0.44 in
         log against the 65.4 mm single's 0.29; with 16, χ² 61.7 and ``T_b`` 0.27, the truth
-        inside. A single recording keeps 8 (the coverage study's fits).
+        inside (on one device, other realisations, the joint ``T_b`` still spans 0.56 against
+        0.21: its cost is rough near the optimum; benchmarks/README). With an oil-jet
+        companion 16 steps took the rare-regime coverage case from χ² 4065 to 255. A single
+        recording keeps 8 (the coverage study's fits).
     sigma_floor : lower bound on a band's standard deviation, log10 units.
     floor_uncertainty : standard uncertainty (log10) of the analytic white quantisation floor
         of eq. (8), added to the bands it dominates. Measured: in floor-dominated bands a
