@@ -379,7 +379,7 @@ def diagnose(
         mean = np.asarray(prob.mean_of(_evaluate(prob, zs)))
         return np.stack(
             [
-                np.concatenate([whitened(mean[k]), np.asarray(prob.prior_rows(jnp.asarray(z)))])
+                np.concatenate([whitened(mean[k]), prob.prior_rows(np.asarray(z))])
                 for k, z in enumerate(zs)
             ]
         )
@@ -388,7 +388,7 @@ def diagnose(
         """``z`` after Gauss–Newton on the coordinates not ``frozen``."""
         if not options.iterations:
             return z
-        steps = np.minimum(np.asarray(prob.fd_steps(jnp.asarray(z))), 1.0)[None]
+        steps = np.minimum(prob.fd_steps(np.asarray(z)), 1.0)[None]
         rows = functools.partial(residual_rows, prob)
         return _polish_profile(rows, z[None], [frozen], steps, iterations=options.iterations)[0]
 

@@ -39,7 +39,6 @@ from pathlib import Path
 
 import emcee
 import h5py
-import jax.numpy as jnp
 import numpy as np
 
 from .errors import RattlefitError
@@ -333,7 +332,7 @@ def _summarise(sampler, specs, viscosity, burn_in):
     values = np.empty_like(z)
     names, units = [], []
     for i, s in enumerate(specs):
-        values[..., i] = np.asarray(s.value(jnp.asarray(z[..., i])))
+        values[..., i] = s.value(np.asarray(z[..., i]))
         if s.name == "viscosity_scale":
             values[..., i] *= viscosity
             names.append("viscosity")
