@@ -86,3 +86,65 @@ def test_the_traced_path_is_the_host_path():
     assert 0 < np.mean(w_host == 0) < 0.5  # the test sees both kinds
     m_traced = jax.jit(lambda f: ensemble_mean(f, THRESHOLD))(ens)
     np.testing.assert_allclose(np.asarray(m_traced), ensemble_mean(ens, THRESHOLD), rtol=1e-14)
+
+
+def _two_regimes(rng, trials, rare: int, shift=0.8):
+    """Six realisations, the first ``rare`` of them moved by ``shift`` (8 sd) in every band,
+    and a recording (0.1 sd of noise) of each regime."""
+    ens = _gaussian(rng, trials)
+    ens[:, :rare] += shift
+    level = np.linspace(-5.0, -11.0, B)
+    in_rare = level + shift + 0.1 * rng.standard_normal((trials, B))
+    in_common = level + 0.1 * rng.standard_normal((trials, B))
+    return ens, in_rare, in_common
+
+
+def test_a_recording_of_the_rarer_regime_is_matched_by_that_regime():
+    # coexisting attractors: two of six releases settle into a regime the recording is in;
+    # its mean must be that regime's (the mean of those two), not the common one's
+    rng = np.random.default_rng(5)
+    ens, in_rare, in_common = _two_regimes(rng, 1000, rare=2)
+    w = np.asarray(regime_weights(ens, THRESHOLD, target=in_rare))
+    assert np.mean(np.all(w == [1, 1, 0, 0, 0, 0], axis=1)) > 0.99
+    got = np.asarray(ensemble_mean(ens, THRESHOLD, target=in_rare))
+    exact = np.all(w == [1, 1, 0, 0, 0, 0], axis=1)
+    np.testing.assert_allclose(got[exact], ens[exact, :2].mean(axis=1), rtol=1e-14)
+    # a recording of the common regime keeps the common regime, exactly as without a target
+    w_common = np.asarray(regime_weights(ens, THRESHOLD, target=in_common))
+    np.testing.assert_array_equal(w_common, regime_weights(ens, THRESHOLD))
+    assert np.mean(np.all(w_common == [0, 0, 1, 1, 1, 1], axis=1)) > 0.99
+
+
+def test_a_lone_realisation_is_not_a_regime():
+    # one release of six in the recording's regime gives no spread: the common regime stays
+    rng = np.random.default_rng(6)
+    ens, in_rare, _ = _two_regimes(rng, 200, rare=1)
+    np.testing.assert_array_equal(
+        regime_weights(ens, THRESHOLD, target=in_rare), regime_weights(ens, THRESHOLD)
+    )
+
+
+def test_the_recording_regime_traces_as_it_computes_on_the_host():
+    import jax
+
+    rng = np.random.default_rng(7)
+    ens, in_rare, in_common = _two_regimes(rng, 60, rare=2)
+    target = np.where(np.arange(60)[:, None] % 2 == 0, in_rare, in_common)
+    w_host = regime_weights(ens, THRESHOLD, target=target)
+    assert isinstance(w_host, np.ndarray)
+    w_traced = jax.jit(lambda f, t: regime_weights(f, THRESHOLD, target=t))(ens, target)
+    np.testing.assert_array_equal(np.asarray(w_traced), w_host)
+    assert 0 < np.mean(w_host[:, 0]) < 1  # both regimes chosen somewhere
+    sig = np.asarray(
+        band_sigma(
+            ens,
+            m=6,
+            floor=0.0,
+            noise_floor=np.zeros(60),
+            floor_sd=0.0,
+            threshold=THRESHOLD,
+            target=target,
+        )
+    )
+    # the spread of each trial's chosen regime: two realisations' in the rare, four's else
+    assert np.all(np.isfinite(sig)) and np.all(sig > 0)

@@ -289,6 +289,15 @@ class FitOptions:
         Measured on the pair I dry coverage cases, where about one realisation in eight
         settles into a regime with d² of 15–45: with every realisation kept the fit put ``a``
         at 10–40 µm (damping that suppresses that regime) and excluded the truth, a = 0.
+    regime : which regime the mean features and their spread describe where the realisations
+        split: ``"recording"`` (default) the one the recording is in, when its nearest
+        realisation lies outside the common regime and at least two realisations share that
+        regime (:func:`~rattlefit.ensemble.regime_weights` with a target); ``"common"`` the
+        regime most realisations share, as before session 23. Coexisting attractors are
+        common in oil-jet rattle, and which one a rig is on is its history's choice, not a
+        parameter's. Measured on the independent simulator's pair II oil-jet file (65.6 mm,
+        20 % at 16 Hz, seed 0): ``"common"`` put ``drag_torque`` at [0.050, 0.066] N m, the
+        truth 0.025 outside; ``"recording"`` gives [0.015, 0.030].
     priors : replacement :class:`ParameterSpec` by name.
     """
 
@@ -315,6 +324,7 @@ class FitOptions:
     burn_in: float = 0.5
     dither: float = 0.1
     regime_threshold: float | None = 9.0
+    regime: str = "recording"
     priors: dict = dataclasses.field(default_factory=dict)
 
     @classmethod
@@ -352,6 +362,10 @@ class FitOptions:
         if self.quantisation not in ("encoders", "white"):
             raise RattlefitError(
                 f"FitOptions.quantisation must be 'encoders' or 'white', got {self.quantisation!r}"
+            )
+        if self.regime not in ("recording", "common"):
+            raise RattlefitError(
+                f"FitOptions.regime must be 'recording' or 'common', got {self.regime!r}"
             )
         counts = ("profile_rounds", "profile_bisections", "profile_screen", "recentre_rounds")
         if any(getattr(self, k) < 0 for k in counts):
@@ -437,7 +451,9 @@ def _noise_model(problem: _Problem, per: np.ndarray, r_data: np.ndarray, dof_rec
     """:class:`NoiseModel` from the realisations ``per`` (R, n, B) at the optimum, whose
     standardised data rows (in units of ``problem.sigma``) are ``r_data`` (R·B,)."""
     n_rec, n_band = np.asarray(problem.data).shape
-    kept = np.asarray(regime_weights(per, problem.regime_threshold)) > 0
+    target = problem.regime_target()
+    target = None if target is None else np.asarray(target)
+    kept = np.asarray(regime_weights(per, problem.regime_threshold, target=target)) > 0
     chaos, nu = chaotic_part(per, problem.dither_offsets(per.shape[1]), kept)
     whiten = np.zeros((n_rec * n_band, n_rec * n_band))
     for k in range(n_rec):
@@ -560,6 +576,7 @@ class _Problem(eqx.Module):
     bands: object = eqx.field(static=True)
     quantise: bool = eqx.field(static=True)
     regime_threshold: float | None = eqx.field(static=True)
+    recording_regime: bool = eqx.field(static=True)  # FitOptions.regime == "recording"
     static: tuple = eqx.field(static=True)  # simulator options as sorted items
     films: tuple = eqx.field(static=True)  # (R,) each recording's film half-length's name
     #: an extra effect whose fitted fields are specs named "<effect>.<field>" (diagnose)
@@ -666,9 +683,15 @@ class _Problem(eqx.Module):
         out = self.features_of_rows(self.rows(zs))
         return out.reshape(zs.shape[0], self.n_rec, self.y0.shape[1], -1)
 
+    def regime_target(self):
+        """The features whose regime the ensemble statistics describe (``FitOptions.regime``):
+        the recordings' (R, B), or None for the common regime."""
+        return self.data if self.recording_regime else None
+
     def mean_of(self, features):
-        """Mean features of the realisations (second-last axis) in the common regime."""
-        return ensemble_mean(features, self.regime_threshold)
+        """Mean features of the realisations (second-last axis) in the regime kept: the
+        recording's own (:func:`~rattlefit.ensemble.regime_weights`), or the common one."""
+        return ensemble_mean(features, self.regime_threshold, self.regime_target())
 
     def prior_rows(self, z):
         """The residual's prior rows at ``z``: ``(log v − log center) / log_sd`` of every
@@ -1048,6 +1071,7 @@ def _build(
         bands=first.bands,
         quantise=options.quantisation == "encoders",
         regime_threshold=options.regime_threshold,
+        recording_regime=options.regime == "recording",
         static=static,
         films=films,
     )
@@ -1147,6 +1171,7 @@ def identify(
             options.model_discrepancy,
             offsets=problem.dither_offsets(ens.shape[1]),
             threshold=problem.regime_threshold,
+            target=problem.regime_target(),
         )
 
     say("estimating the run-to-run spread of the features …")
