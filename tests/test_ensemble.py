@@ -124,6 +124,23 @@ def test_a_lone_realisation_is_not_a_regime():
     )
 
 
+def test_a_regime_too_few_releases_reach_is_not_the_recordings():
+    # of 24 releases, 3 (an eighth) in the recording's regime: too improbable, the common
+    # regime stays; 4 (a sixth, MIN_REGIME_SHARE) make it the recording's
+    from rattlefit.ensemble import MIN_REGIME_SHARE
+
+    assert MIN_REGIME_SHARE * 24 == pytest.approx(4)
+    rng = np.random.default_rng(8)
+    level = np.linspace(-5.0, -11.0, B)
+    target = level + 0.8 + 0.1 * rng.standard_normal((300, B))
+    for rare, expect_rare in ((3, False), (4, True)):
+        ens = level + 0.1 * rng.standard_normal((300, 24, B))
+        ens[:, :rare] += 0.8
+        w = np.asarray(regime_weights(ens, THRESHOLD, target=target))
+        chosen = np.all(w[:, :rare] == 1, axis=1) & np.all(w[:, rare:] == 0, axis=1)
+        assert np.mean(chosen) > 0.99 if expect_rare else np.mean(chosen) == 0
+
+
 def test_the_recording_regime_traces_as_it_computes_on_the_host():
     import jax
 
