@@ -234,7 +234,7 @@ SHARED_CASES = [
             pytest.mark.xfail(
                 strict=False,
                 reason="issue 3 open. Session 23 (FitOptions.regime='recording', seed 0, two "
-                "devices): T_b [0.0037, 0.054] N m holds its truth, but a [113, 563] µm misses "
+                "devices): T_b [0.0059, 0.040] N m holds its truth, but a [113, 453] µm misses "
                 "its 1 mm at χ² 332 on 28 (flagged): near the truth about a third of releases "
                 "reach the recording's orbit (rms 0.02-0.07 from its features, χ² ~ 11 at "
                 "μ × 0.9), a basin the starts and LM do not find. "
