@@ -14,8 +14,8 @@ of every band, so the fit then matches data that belong to the common regime wit
 parameter (on the pair I dry coverage cases, a film half-length of 10–40 µm whose damping
 suppresses the rare regime). :func:`regime_weights` therefore sets realisations far from the
 ensemble median aside, and :func:`ensemble_mean` and :func:`chaotic_part` describe the regime
-that most realisations share, unless the recording itself is in another one that at least
-two realisations reach: then that regime (``target``, ``FitOptions.regime``). All functions
+that most realisations share, unless the recording itself is in another one that enough of
+them reach: then that regime (``target``, ``FitOptions.regime``). All functions
 take features shaped (..., n, B): realisations on the second-last axis, bands on the last.
 """
 
@@ -48,8 +48,9 @@ def regime_weights(features, threshold: float | None, *, scale_floor: float = 0.
     With ``target`` (..., B), the features of a recording, the regime kept is the one the
     recording is in (:func:`_target_regime`): the common regime when the realisation
     nearest the target belongs to it, else the realisations that cluster with that nearest
-    one (at least :data:`MIN_IN_REGIME`). Traces inside the fit's residual; on concrete features
-    it computes in numpy (see :func:`~rattlefit._util.array_namespace`).
+    one (at least :data:`MIN_IN_REGIME`, and :data:`MIN_REGIME_SHARE` of all). Traces inside
+    the fit's residual; on concrete features it computes in numpy (see
+    :func:`~rattlefit._util.array_namespace`).
     """
     xp = array_namespace(features, target)
     f = xp.asarray(features)
@@ -63,7 +64,7 @@ def regime_weights(features, threshold: float | None, *, scale_floor: float = 0.
     enough = 2 * xp.sum(keep, axis=-1, keepdims=True) >= n
     common = xp.where(enough, keep, True)
     if target is not None:
-        common = _target_regime(f, scale, common, xp.asarray(target), xp)
+        common = _target_regime(f, med, scale, common, xp.asarray(target), xp)
     return common.astype(f.dtype)
 
 
@@ -78,10 +79,10 @@ MIN_IN_REGIME = 2
 MIN_REGIME_SHARE = 1 / 6
 
 
-def _target_regime(f, scale, common, target, xp):
+def _target_regime(f, med, scale, common, target, xp):
     """The regime of ``target`` among realisations ``f`` (..., n, B): ``common`` (..., n)
     when the realisation nearest the target (in the robust ``scale``) is in it; else the
-    realisations nearer to that nearest one than to the ensemble median (one step of
+    realisations nearer to that nearest one than to the ensemble median ``med`` (one step of
     two-centre clustering), when there are at least :data:`MIN_IN_REGIME` of them and at
     least :data:`MIN_REGIME_SHARE` of all.
 
@@ -99,7 +100,6 @@ def _target_regime(f, scale, common, target, xp):
 
     nearest = xp.argmin(dist2(f, target[..., None, :]), axis=-1)[..., None]
     f_near = xp.take_along_axis(f, nearest[..., None], axis=-2)  # (..., 1, B)
-    med = xp.median(f, axis=-2, keepdims=True)
     near = dist2(f, f_near) < dist2(f, med)
     in_common = xp.take_along_axis(common, nearest, axis=-1)  # (..., 1)
     least = max(MIN_IN_REGIME, math.ceil(MIN_REGIME_SHARE * f.shape[-2] - 1e-9))

@@ -459,7 +459,6 @@ def _noise_model(problem: _Problem, per: np.ndarray, r_data: np.ndarray, dof_rec
     standardised data rows (in units of ``problem.sigma``) are ``r_data`` (R·B,)."""
     n_rec, n_band = np.asarray(problem.data).shape
     target = problem.regime_target()
-    target = None if target is None else np.asarray(target)
     kept = np.asarray(regime_weights(per, problem.regime_threshold, target=target)) > 0
     chaos, nu = chaotic_part(per, problem.dither_offsets(per.shape[1]), kept)
     whiten = np.zeros((n_rec * n_band, n_rec * n_band))
