@@ -7,6 +7,7 @@ compares the reported 95 % intervals with a truth the fit never saw.
 import json
 import os
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -402,6 +403,28 @@ def test_host_side_arithmetic_compiles_nothing_and_equals_its_traced_form(mild_r
     k_of = np.arange(2 * m).reshape(2, m)[:, [4, 1]].reshape(-1)
     for a, b in zip(got[4], all_rows, strict=True):
         np.testing.assert_array_equal(a, np.asarray(b)[k_of])
+
+
+def test_the_noise_model_reports_the_share_of_the_recordings_regime(mild_recording):
+    # 4 of 24 realisations at the optimum in the recording's regime (a sixth, enough to be it):
+    # the noise model is built on those four, and says that they are a sixth; with
+    # regime="common" it is built on the other twenty
+    from rattlefit.fit import _noise_model
+
+    for regime, share in (("recording", 4 / 24), ("common", 20 / 24)):
+        options = FitOptions(regime=regime)
+        problem, _ = _build([mild_recording[0]], options, np.random.default_rng(0))
+        rng = np.random.default_rng(9)
+        level = np.asarray(problem.data)[0]
+        per = level + 0.1 * rng.standard_normal((1, 24, level.size))
+        per[:, :4] += 0.8
+        problem = eqx.tree_at(lambda q: q.data, problem, jnp.asarray(level + 0.8)[None])
+        noise = _noise_model(problem, per, np.zeros(level.size), 28.0)
+        assert noise.regime_share == pytest.approx([share])
+        # the spread's degrees of freedom are those of the regime kept: four realisations
+        # leave too few to regress out the dither offsets (3), twenty do (20 − 1 − q)
+        q = problem.dither_offsets(24).shape[1]
+        assert noise.sigma_dof == (3 if regime == "recording" else 20 - 1 - q)
 
 
 def test_profile_points_far_outside_are_set_aside_after_a_few_realisations(mild_recording):

@@ -9,7 +9,7 @@ from rattlefit.fit import FitOptions, FitResult, ParameterEstimate
 from rattlefit.report import format_table
 
 
-def _result(chi2, dof, chi2_recordings=(), recordings=()):
+def _result(chi2, dof, chi2_recordings=(), recordings=(), regime_share=()):
     a = ParameterEstimate("a", "m", 8.5e-5, 6e-5, 1.1e-4, True)
     tb = ParameterEstimate("drag_torque", "N m", None, 0.0, 0.05, False, "upper")
     mu = ParameterEstimate("viscosity", "Pa s", None, 0.3, 0.6, False, "interval")
@@ -34,6 +34,7 @@ def _result(chi2, dof, chi2_recordings=(), recordings=()):
         band_centers=np.zeros(1),
         map_params=[],
         chi2_recordings=list(chi2_recordings),
+        regime_share=list(regime_share),
     )
 
 
@@ -70,3 +71,15 @@ def test_a_joint_fit_names_the_recording_the_model_does_not_explain():
     both = _result(100.0, 57, chi2_recordings=[50.0, 50.0], recordings=files)
     assert both.poor_fit and both.poorly_fitted == []
     assert "does not explain these recordings together" in format_table(both)
+
+
+def test_a_recording_in_a_minority_regime_is_named():
+    # the fit compares each recording with its own regime; where that is a minority of the
+    # model's releases at the optimum, the reader must learn it (and which file, when several)
+    assert "note" not in format_table(_result(30.0, 28, regime_share=[0.9]))
+    one = format_table(_result(30.0, 28, recordings=["x/r.h5"], regime_share=[0.25]))
+    assert "note: the recording is in a regime that 25% of the model's releases reach" in one
+    two = format_table(
+        _result(60.0, 57, [30.0, 30.0], ["x/a.h5", "x/b.h5"], regime_share=[1.0, 0.2])
+    )
+    assert "note: b.h5 is in a regime that 20%" in two and "a.h5 is in" not in two

@@ -439,6 +439,9 @@ class NoiseModel:
     chi2_recordings : (R,) each recording's χ² at the optimum, before inflation.
     sigma_dof : degrees of freedom of the spread estimate
         (:func:`~rattlefit.ensemble.chaotic_part`).
+    regime_share : (R,) the share of the realisations at the optimum that are in the regime
+        each recording is compared with (``FitOptions.regime``); below one half the recording
+        is in a regime rarer than another that the model reaches there.
     """
 
     sigma: np.ndarray
@@ -446,6 +449,7 @@ class NoiseModel:
     row_scale: np.ndarray
     chi2_recordings: np.ndarray
     sigma_dof: int
+    regime_share: np.ndarray | None = None
 
     def quadratic(self, standardised) -> np.ndarray:
         """Σ (row_scale · whiten · r)² of data rows ``r`` already divided by a band spread;
@@ -468,7 +472,9 @@ def _noise_model(problem: _Problem, per: np.ndarray, r_data: np.ndarray, dof_rec
         whiten[sl, sl] = np.linalg.inv(chol)
     chi2_rec = np.sum((whiten @ r_data).reshape(n_rec, n_band) ** 2, axis=1)
     row_scale = np.repeat(1.0 / np.sqrt(np.maximum(1.0, chi2_rec / dof_rec)), n_band)
-    return NoiseModel(np.asarray(problem.sigma), whiten, row_scale, chi2_rec, int(nu.min()))
+    return NoiseModel(
+        np.asarray(problem.sigma), whiten, row_scale, chi2_rec, int(nu.min()), kept.mean(axis=1)
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -495,6 +501,9 @@ class FitResult:
     band_centers: np.ndarray
     map_params: list[dict[str, float]]
     chi2_recordings: list[float] = dataclasses.field(default_factory=list)
+    #: each recording's :attr:`NoiseModel.regime_share`: below one half it is in a regime that
+    #: fewer of the model's releases reach at the optimum than another
+    regime_share: list[float] = dataclasses.field(default_factory=list)
     #: the data rows' weighting at the optimum, shared with :func:`rattlefit.sample.sample`
     noise: NoiseModel | None = dataclasses.field(default=None, repr=False, compare=False)
 
@@ -545,6 +554,7 @@ class FitResult:
                 "poor_fit": self.poor_fit,
                 "poorly_fitted_recordings": [self.recordings[k] for k in self.poorly_fitted],
                 "chi2_per_recording": self.chi2_recordings,
+                "regime_share_per_recording": self.regime_share,
                 "iterations": self.n_iterations,
                 "success": self.success,
                 "message": self.message,
@@ -1473,6 +1483,7 @@ def identify(
             for i in range(problem.n_rec)
         ],
         chi2_recordings=[float(c) for c in chi2_rec],
+        regime_share=[float(x) for x in noise.regime_share],
         noise=noise,
     )
 

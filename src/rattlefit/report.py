@@ -58,6 +58,17 @@ def format_table(result: FitResult) -> str:
         f"χ² = {result.chi2:.1f}{per} on {result.dof} dof; {result.n_iterations} "
         f"Levenberg–Marquardt steps; seed {result.seed}; {result.wall_time:.1f} s"
     )
+    for k, share in enumerate(result.regime_share):
+        if share < 0.5:
+            which = "the recording"
+            if len(result.recordings) > 1:
+                which = Path(result.recordings[k]).name
+            lines.append(
+                f"note: {which} is in a regime that {share:.0%} of the model's releases reach "
+                "at the fitted parameters (the others settle into another); the fit compares it "
+                "with that regime (FitOptions.regime), since which one a rig is on is its "
+                "history's choice."
+            )
     if result.poor_fit:
         which = "this recording"
         widened = f"√(χ²/dof) = {(result.chi2 / result.dof) ** 0.5:.1f}"
