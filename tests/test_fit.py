@@ -5,6 +5,7 @@ compares the reported 95 % intervals with a truth the fit never saw.
 """
 
 import json
+import math
 import os
 
 import equinox as eqx
@@ -36,6 +37,7 @@ from rattlefit.fit import (
     _profile_interval,
     _profile_threshold,
     _ProfileCosts,
+    _screen_features,
     _starting_points,
     _threshold_crossing,
     identify,
@@ -234,7 +236,14 @@ SHARED_CASES = [
             ),
             pytest.mark.xfail(
                 strict=False,
-                reason="issue 3 open. Session 23 (FitOptions.regime='recording', seed 0, two "
+                reason="issue 3 open. Session 24 with FitOptions(nuisance_starts=None, "
+                "screen='nearest') (seed 0, two devices): χ² 45 on 28, not flagged, T_b "
+                "[0.0215, 0.0282] N m inside, but a [191, 357] µm and μ [0.381, 0.519] Pa s "
+                "miss their 1 mm and 0.348: the fit sits at the lower end of a curved valley "
+                "(a 0.27 mm at μ × 1.28 to 1-2 mm at μ × 0.95, cost within ~20) that the "
+                "profiles, moving along straight Laplace paths, do not follow "
+                "(benchmarks/README, 'Starts over the nuisances'). "
+                "Session 23 (FitOptions.regime='recording', seed 0, two "
                 "devices): T_b [0.0059, 0.040] N m holds its truth, but a [113, 453] µm misses "
                 "its 1 mm at χ² 332 on 28 (flagged): near the truth about a third of releases "
                 "reach the recording's orbit (rms 0.02-0.07 from its features, χ² ~ 11 at "
@@ -518,6 +527,68 @@ def test_a_fit_across_lubrications_gives_each_its_film_and_shares_the_oil(
         _build(recs, FitOptions.quick(priors={"a": film}), np.random.default_rng(0))
 
 
+def test_a_second_set_of_starts_spreads_the_nuisances_over_their_priors(mild_recording):
+    # the first set as without it, with the nuisances at their prior medians; then as many
+    # again, with each parameter that has a prior spread over its median × exp(±1 log_sd), end
+    # to end and on both sides of the median, and (a, T_b) over their START_RANGES
+    problem, _ = _build([mild_recording[0]], FitOptions(), np.random.default_rng(0))
+    rng_flat, rng = np.random.default_rng(0), np.random.default_rng(0)
+    flat = _starting_points(problem, None, rng_flat)
+    starts = _starting_points(problem, None, rng, nuisance_starts=None)
+    assert flat.shape == (START_POINTS, len(problem.specs))
+    assert starts.shape == (2 * START_POINTS, len(problem.specs))
+    np.testing.assert_array_equal(starts[:START_POINTS], flat)
+    assert rng.random() == rng_flat.random()  # the caller's stream is left as without them
+    second = starts[START_POINTS:]
+    for i, spec in enumerate(problem.specs):
+        v = np.array([spec.value(t) for t in second[:, i]])
+        if spec.log_sd is None:
+            lo, hi = START_RANGES[spec.name == "drag_torque"]
+        else:
+            lo, hi = spec.center * np.exp(-spec.log_sd), spec.center * np.exp(spec.log_sd)
+            flat_v = np.array([spec.value(t) for t in flat[:, i]])
+            assert flat_v == pytest.approx(spec.center)
+            assert 0.35 < np.mean(v < spec.center) < 0.65, spec.name  # both sides alike
+        span = math.log(hi / lo)
+        assert np.all(v >= lo * (1 - 1e-9)) and np.all(v <= hi * (1 + 1e-9)), spec.name
+        assert math.log(v.min() / lo) < 0.1 * span and math.log(hi / v.max()) < 0.1 * span
+    assert len(_starting_points(problem, 16, np.random.default_rng(0), nuisance_starts=8)) == 24
+    # a prior wider than the range (a caller's) spreads the starts only inside the range
+    wide = nuisance_prior("viscosity_scale", 1.0, 3.0)
+    problem, _ = _build(
+        [mild_recording[0]], FitOptions(priors={"viscosity_scale": wide}), np.random.default_rng(0)
+    )
+    i = [s.name for s in problem.specs].index("viscosity_scale")
+    starts = _starting_points(problem, None, np.random.default_rng(0), nuisance_starts=None)
+    v = np.array([problem.specs[i].value(t) for t in starts[START_POINTS:, i]])
+    assert wide.lower < v.min() < 1.2 * wide.lower and wide.upper / 1.2 < v.max() < wide.upper
+
+
+def test_starts_can_be_ranked_by_their_realisation_nearest_the_recording(mild_recording):
+    # Two starts screened with two realisations each. Start 0 has one realisation on the
+    # recording and one in another regime far from it; start 1 has both a little off it.
+    # Their means rank start 1 first; ranked by the realisation nearest the recording
+    # (FitOptions.screen "nearest"), start 0 is the one whose neighbourhood can reproduce the
+    # recording, and ranks first.
+    problem, _ = _build([mild_recording[0]], FitOptions(), np.random.default_rng(0))
+    data = np.asarray(problem.data)
+    problem = eqx.tree_at(lambda q: q.sigma, problem, jnp.full(data.shape, 0.1))
+    f = np.empty((2, 1, 2, data.shape[1]))
+    f[0, :, 0], f[0, :, 1] = data + 0.001, data + 0.2
+    f[1] = data[:, None] + 0.06
+    costs = {}
+    for screen in ("nearest", "mean"):
+        screened = _screen_features(problem, f, screen)
+        assert screened.shape == (2, 1, data.shape[1])
+        costs[screen] = [np.sum(problem.data_rows(screened[k]) ** 2) for k in range(2)]
+    assert costs["nearest"][0] < costs["nearest"][1]
+    assert costs["nearest"][0] == pytest.approx(data.shape[1] * 0.01**2)
+    assert costs["mean"][1] < costs["mean"][0]
+    assert costs["mean"][0] == pytest.approx(data.shape[1] * 1.005**2)
+    with pytest.raises(rf.RattlefitError, match="screen must be 'mean' or 'nearest'"):
+        FitOptions(screen="best")
+
+
 def test_estimate_reports_bounds_and_identification():
     a = ParameterSpec("a", "m", 1e-6, 5e-3)
     z = a.z_of
@@ -700,6 +771,8 @@ def test_counts_of_the_profile_stage_are_checked_at_construction():
     assert FitOptions(polish_iterations=1).polish_iterations == 1
     with pytest.raises(rf.RattlefitError, match="n_starts must be ≥ 1 or None, got 0"):
         FitOptions(n_starts=0)
+    with pytest.raises(rf.RattlefitError, match="nuisance_starts must be ≥ 0 or None, got -1"):
+        FitOptions(nuisance_starts=-1)
     with pytest.raises(rf.RattlefitError, match="max_iterations must be ≥ 1 or None, got 0"):
         FitOptions(max_iterations=0)
     # Levenberg–Marquardt steps: 8 per recording by default (a joint fit's iterate moves

@@ -168,9 +168,34 @@ class FitOptions:
         dimensions (a boundary file with an oil-jet companion, tests/test_fit.py) the best of
         64 starts cost 1919 against 68 for the best of 128, and the fit ended at χ² 99 on 57
         with both films' intervals missing their truth.
+    nuisance_starts : further starts, spread like those of ``n_starts`` and with each
+        parameter that has a prior (viscosity and stiffness scales, ``h_min``, the backlashes)
+        spread too, over its median × exp(± :data:`START_NUISANCE_SDS` log_sd)
+        (:func:`_starting_points`); None: as many as ``n_starts`` gives. 0 (the default):
+        none. Measured in session 24 (seed 0, 2 devices; benchmarks/README, "Starts over the
+        nuisances"), not an improvement yet. A recording in a regime that only part of the
+        nuisances' prior reaches has its basin away from their medians: the independent
+        simulator's pair II oil-jet file (65.6 mm, 20 % at 16 Hz) costs 3370 at its truth with
+        the medians and 11 with the viscosity scale at 0.9, where a third of the releases
+        reach its orbit. With as many again and ``screen="nearest"`` its fit ends at χ² 45 on
+        28 instead of 332, in that valley; but the valley is curved (the squeeze force
+        saturates in ``a``: from ``a`` 0.27 mm at μ × 1.28 to 1–2 mm at μ × 0.95 the cost
+        stays within about 20), the profiles do not follow it, and ``a`` [191, 357] µm and μ
+        [0.381, 0.519] Pa s miss their truths. The coverage study held 30/30 (case 10 χ² 49
+        instead of 298), but with an oil-jet companion 26/27 against 27/27, and two
+        companion cases ended at χ² 636 and 911 instead of 149 and 62: more starts find more
+        points where 2 of the fit's 6 realisations reach a regime that 24 do not confirm.
     start_realisations : realisations per start in the screening; the best
         ``n_refine`` + :data:`SCREEN_EXTRA` starts are then re-evaluated with all
         ``n_realisations``. Two are enough to tell a basin (cost differences of hundreds).
+    screen : how a start is ranked from its ``start_realisations`` (:func:`_screen_features`):
+        "mean" (the default), or "nearest", by its realisation nearest the recording, which
+        near a recording in a rarer regime is not averaged with one in another. Measured in
+        session 24 (seed 0, 2 devices), not an improvement: the coverage study held 30/30 as
+        with "mean" (case 7 χ² 84 instead of 29, flagged), but with an oil-jet companion
+        26/27 against 27/27 (case 3's dry ``a`` [2.5, 16.7] µm excludes 0; case 1's ``a``
+        no longer identified). On the pair II oil-jet shared file alone: χ² 97 against 332,
+        ``a`` still missed.
     n_refine : how many of the best starts are refined. Every other refined optimum (and the
         best start) whose cost in the profile likelihood lies below the profile threshold is
         inside the 95 % region, and the reported intervals span it (:func:`_admit_rivals`).
@@ -313,6 +338,8 @@ class FitOptions:
     n_covariance_realisations: int = 24
     n_starts: int | None = None
     start_realisations: int = 2
+    nuisance_starts: int | None = 0
+    screen: str = "mean"
     n_refine: int = 3
     max_iterations: int | None = None
     sigma_floor: float = 0.03
@@ -370,6 +397,10 @@ class FitOptions:
             raise RattlefitError(
                 f"FitOptions.quantisation must be 'encoders' or 'white', got {self.quantisation!r}"
             )
+        if self.screen not in ("mean", "nearest"):
+            raise RattlefitError(
+                f"FitOptions.screen must be 'mean' or 'nearest', got {self.screen!r}"
+            )
         if self.regime not in ("recording", "common"):
             raise RattlefitError(
                 f"FitOptions.regime must be 'recording' or 'common', got {self.regime!r}"
@@ -383,6 +414,10 @@ class FitOptions:
             )
         if self.n_starts is not None and self.n_starts < 1:
             raise RattlefitError(f"FitOptions.n_starts must be ≥ 1 or None, got {self.n_starts}")
+        if self.nuisance_starts is not None and self.nuisance_starts < 0:
+            raise RattlefitError(
+                f"FitOptions.nuisance_starts must be ≥ 0 or None, got {self.nuisance_starts}"
+            )
         if self.polish_iterations < 1:
             raise RattlefitError(
                 f"FitOptions.polish_iterations must be ≥ 1, got {self.polish_iterations}"
@@ -860,6 +895,25 @@ def _residuals(problem: _Problem, zs, mean=None) -> np.ndarray:
     )
 
 
+def _screen_features(problem: _Problem, features, screen: str = "mean") -> np.ndarray:
+    """The features (K, R, B) by which starting points are ranked, from their few screening
+    realisations ``features`` (K, R, k, B) (``FitOptions.screen``).
+
+    "mean": their mean in the regime kept (:meth:`_Problem.mean_of`). "nearest": each
+    start's realisation nearest the recording (in the band weights), recording by recording:
+    near the truth of a recording in a rarer regime, one or two of every few releases reach
+    it, and the mean of two realisations in different regimes matches neither, so the start
+    would rank with the poor ones.
+    """
+    features = np.asarray(features)
+    if screen == "mean":
+        return np.asarray(problem.mean_of(features))
+    data, sigma = np.asarray(problem.data), np.asarray(problem.sigma)
+    d2 = np.sum(((features - data[None, :, None, :]) / sigma[None, :, None, :]) ** 2, axis=-1)
+    nearest = np.argmin(d2, axis=2)  # (K, R)
+    return np.take_along_axis(features, nearest[:, :, None, None], axis=2)[:, :, 0]
+
+
 def _costs(problem: _Problem, zs, mean=None) -> np.ndarray:
     """The fit's cost (squared data and prior rows) at each point of ``zs`` (K, P)."""
     return np.sum(_residuals(problem, zs, mean) ** 2, axis=1)
@@ -1099,11 +1153,20 @@ def _prior_centre(specs) -> np.ndarray:
     return np.array([s.z_of(s.center) if s.center else 0.0 for s in specs])
 
 
-def _starting_points(problem: _Problem, n_starts: int | None, rng) -> np.ndarray:
-    """The fit's starting points (N, P): the prior centres, with each film half-length and
-    the drag torque spread log-uniformly over :data:`START_RANGES` by a seeded scrambled
-    Sobol' sequence. ``n_starts`` None gives :data:`START_POINTS` for (a, T_b), twice as many
-    for each further film half-length (a fit across lubrications)."""
+def _starting_points(
+    problem: _Problem, n_starts: int | None, rng, *, nuisance_starts: int | None = 0
+) -> np.ndarray:
+    """The fit's starting points (N, P), from seeded scrambled Sobol' sequences.
+
+    First ``n_starts`` with each film half-length and the drag torque spread log-uniformly over
+    :data:`START_RANGES` and the other parameters at their prior medians; None gives
+    :data:`START_POINTS` for (a, T_b), twice as many for each further film half-length (a fit
+    across lubrications). Then ``nuisance_starts`` more (None: as many again) spread the same
+    way, with each parameter that has a prior spread too, over its median × exp(±
+    :data:`START_NUISANCE_SDS` log_sd) (:func:`_nuisance_start_range`). The second set is drawn
+    from a child of ``rng`` (:meth:`numpy.random.Generator.spawn`), which leaves ``rng``'s own
+    stream as without it.
+    """
     specs = problem.specs
     spread = [
         (i, START_RANGES[s.name == "drag_torque"])
@@ -1111,12 +1174,39 @@ def _starting_points(problem: _Problem, n_starts: int | None, rng) -> np.ndarray
         if s.name == "drag_torque" or s.name in problem.films
     ]
     n = n_starts or START_POINTS * 2 ** (len(spread) - 2)
+    starts = _sobol_points(specs, spread, n, rng)
+    m = n if nuisance_starts is None else nuisance_starts
+    if m > 0:
+        nuisances = [
+            (i, _nuisance_start_range(s, START_NUISANCE_SDS))
+            for i, s in enumerate(specs)
+            if s.log_sd is not None
+        ]
+        (child,) = rng.spawn(1)
+        starts = np.concatenate([starts, _sobol_points(specs, spread + nuisances, m, child)])
+    return starts
+
+
+def _sobol_points(specs, spread, n: int, rng) -> np.ndarray:
+    """``n`` points (n, P) at the prior centres but for the parameters ``spread`` — (index,
+    (low, high)) — each spread log-uniformly over its (low, high) by a seeded scrambled Sobol'
+    sequence, in that order of dimensions."""
     starts = np.tile(_prior_centre(specs), (n, 1))
     u = qmc.Sobol(d=len(spread), scramble=True, seed=rng).random_base2(math.ceil(math.log2(n)))
     for col, (i, (lo, hi)) in enumerate(spread):
         vals = np.exp(np.log(lo) + u[:n, col] * math.log(hi / lo))
         starts[:, i] = [specs[i].z_of(v) for v in vals]
     return starts
+
+
+def _nuisance_start_range(spec: ParameterSpec, sds: float) -> tuple[float, float]:
+    """Where starts spread a parameter with a prior: its median × exp(± ``sds`` log_sd), kept
+    5 % inside its range (a wide prior a caller set may reach past it)."""
+    w = sds * spec.log_sd
+    return (
+        max(spec.center * math.exp(-w), spec.lower * math.exp(0.05)),
+        min(spec.center * math.exp(w), spec.upper * math.exp(-0.05)),
+    )
 
 
 def _lm_steps(options: FitOptions, n_recordings: int) -> int:
@@ -1174,7 +1264,9 @@ def identify(
     )
 
     z_center = _prior_centre(specs)
-    starts = _starting_points(problem, options.n_starts, rng)
+    starts = _starting_points(
+        problem, options.n_starts, rng, nuisance_starts=options.nuisance_starts
+    )
     n_starts = len(starts)
 
     def band_sigma(ens):
@@ -1199,8 +1291,9 @@ def identify(
         f"screening {n_starts} starting points with {k_screen} realisation(s) each "
         "(compiling the simulator first) …"
     )
-    start_mean = np.asarray(problem.mean_of(_evaluate(problem, starts, problem.y0[:, :k_screen])))
-    costs = _costs(eqx.tree_at(lambda q: q.sigma, problem, sigma), starts, start_mean)
+    start_features = _evaluate(problem, starts, problem.y0[:, :k_screen])
+    problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
+    costs = _costs(problem, starts, _screen_features(problem, start_features, options.screen))
     # the spread at the prior centre can be far from the spread near the data (violent
     # rattle scatters more than mild): the weights are re-estimated at the best start and
     # the starts re-ranked with them (their features are kept, so this costs no simulation)
@@ -1209,7 +1302,7 @@ def identify(
     ens = _ensemble(problem, best, options.n_noise_realisations, rng)
     sigma = band_sigma(ens)
     problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
-    costs = _costs(problem, starts, start_mean)
+    costs = _costs(problem, starts, _screen_features(problem, start_features, options.screen))
     order = np.argsort(costs)[: options.n_refine + SCREEN_EXTRA]
     if k_screen < options.n_realisations:
         say(f"re-evaluating the best {len(order)} with {options.n_realisations} realisations …")
@@ -1497,6 +1590,9 @@ START_RANGES = ((5e-6, 2e-3), (5e-3, 0.2))  # (each film half-length, drag torqu
 #: Starting points for (a, T_b) when ``FitOptions.n_starts`` is None; twice as many for each
 #: further film half-length (a fit across lubrications).
 START_POINTS = 64
+#: How far the second set of starts spreads each parameter with a prior, in its prior's
+#: standard deviations (log): :func:`_starting_points`.
+START_NUISANCE_SDS = 1.0
 #: Levenberg–Marquardt steps per start and recording when ``FitOptions.max_iterations`` is None.
 LM_STEPS = 8
 #: Starts re-evaluated with all realisations beyond the ``n_refine`` that are refined.
