@@ -7,11 +7,13 @@ compares the reported 95 % intervals with a truth the fit never saw.
 import json
 import math
 import os
+from types import SimpleNamespace
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from scipy.optimize import brentq
 
 import rattlefit as rf
 from rattlefit.ensemble import band_sigma as _band_sigma
@@ -28,16 +30,20 @@ from rattlefit.fit import (
     _admit_rivals,
     _bisect_profile_ends,
     _build,
+    _continue_profiles,
     _debiased_information,
     _estimate,
     _evaluate,
+    _keep_lower,
     _lm_steps,
     _lower_profile_point,
     _polish_profile,
+    _profile_guesses,
     _profile_interval,
     _profile_threshold,
     _ProfileCosts,
     _screen_features,
+    _span_profile_points,
     _starting_points,
     _threshold_crossing,
     identify,
@@ -768,6 +774,8 @@ def test_counts_of_the_profile_stage_are_checked_at_construction():
         FitOptions(polish_iterations=0)
     with pytest.raises(rf.RattlefitError, match="must be ≥ 0"):
         FitOptions(profile_rounds=-1)
+    with pytest.raises(rf.RattlefitError, match="profile_continuation"):
+        FitOptions(profile_continuation=-1)
     assert FitOptions(polish_iterations=1).polish_iterations == 1
     with pytest.raises(rf.RattlefitError, match="n_starts must be ≥ 1 or None, got 0"):
         FitOptions(n_starts=0)
@@ -860,6 +868,56 @@ def test_bisection_finds_the_profile_ends_a_coarse_scan_misses():
     assert all(abs(t_out - t_in) <= width for t_in, t_out in brackets)
     # points inside keep the other parameter where the value inside had it
     assert all(abs(zk[1]) < 1e-12 for _, zk in profiles[0].values())
+
+
+def _narrow_bent_valley(points):
+    # z0 profiled, z1 a nuisance with a prior (sd 10), z2 an unidentified one: the valley
+    # floor z1 = 2 sin z0 is 0.2 wide and bends; off it the cost saturates at 30² with no
+    # slope (as where rattle switches regime). On the floor the profile of z0 is z0² + the
+    # prior's (2 sin z0 / 10)², so its 95 % ends are near ±1.93.
+    z0, z1, z2 = np.asarray(points).T
+    return np.stack([30 * np.tanh((z1 - 2 * np.sin(z0)) / 0.2), z0, z1 / 10, 0 * z2], axis=1)
+
+
+def test_continuation_follows_a_bent_valley_that_the_straight_scan_leaves():
+    def delta(points):
+        return np.sum(_narrow_bent_valley(points) ** 2, axis=1)
+
+    def polish(starts, fixed):
+        return _polish_profile(_narrow_bent_valley, starts, fixed, np.full(starts.shape, 1e-4))
+
+    threshold = 3.84
+    exact = brentq(lambda t: t**2 + (0.2 * np.sin(t)) ** 2 - threshold, 0.5, 3.0)
+    z = np.zeros(3)
+    cov = np.diag([0.5**2, 1.01, 1.0])
+    cov[0, 1] = cov[1, 0] = 0.5  # the Laplace path: the valley's tangent z1 = 2 z0
+    profiles = {0: {0.0: (0.0, z)}}
+    for t in (-8.0, -3.0, -1.0, -0.5, 0.5, 1.0, 3.0, 8.0):  # as _profile_scan: both guesses
+        for g in _profile_guesses(z, cov, 0, t):
+            _keep_lower(profiles[0], t, float(delta(g[None])[0]), g)
+    _bisect_profile_ends(profiles, threshold, z, cov, delta, rounds=4)
+    (lo, hi), _ = _profile_interval(profiles[0], threshold)
+    # the tangent and the value inside both leave the floor before the ends: the scan and
+    # its bisection stop short of them
+    assert hi < 0.85 * exact and lo > -0.85 * exact
+
+    n = _continue_profiles(profiles, threshold, delta, polish, lambda i, t: 0.25, rounds=6)
+    _bisect_profile_ends(profiles, threshold, z, cov, delta, rounds=4)
+    (lo, hi), _ = _profile_interval(profiles[0], threshold)
+    assert n > 0
+    assert hi == pytest.approx(exact, abs=0.1) and lo == pytest.approx(-exact, abs=0.1)
+    # every point inside is on the floor, and the nuisance's interval is widened to span them
+    z_lo, z_hi = np.array([lo, -0.5, -1.0]), np.array([hi, 0.5, 1.0])
+    specs = [SimpleNamespace(log_sd=v) for v in (None, 10.0, None)]
+    _span_profile_points(profiles, threshold, z_lo, z_hi, specs)
+    assert z_hi[1] == pytest.approx(2 * np.sin(exact), abs=0.15)
+    assert z_lo[1] == pytest.approx(-2 * np.sin(exact), abs=0.15)
+    assert (z_lo[2], z_hi[2]) == (-1.0, 1.0)  # no prior: a free parameter's is its profile's
+    # past the true ends the valley's cost exceeds the threshold: a further continuation
+    # spends one round (two guesses at each end) and does not run past them
+    n = _continue_profiles(profiles, threshold, delta, polish, lambda i, t: 0.25, rounds=6)
+    (lo, hi), _ = _profile_interval(profiles[0], threshold)
+    assert n <= 4 and hi == pytest.approx(exact, abs=0.1) and lo == pytest.approx(-exact, abs=0.1)
 
 
 def test_a_profile_clearly_below_the_optimum_is_where_the_fit_starts_again():

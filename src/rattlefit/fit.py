@@ -253,6 +253,26 @@ class FitOptions:
         Measured in session 15: on the joint fit of a synthetic backlash sweep (pair II,
         10 % at 8 Hz) it put the truth inside the ``drag_torque`` interval, which the coarse
         scan's interpolation had ended early; it costs about a fifth more wall time.
+    profile_continuation : rounds of following each free parameter's profile past its
+        interval's ends by continuation (:func:`_continue_profiles`): from the last value
+        inside, a step further out (:data:`CONTINUATION_LOG_STEP` in log, growing by
+        :data:`CONTINUATION_GROWTH` while the profile stays inside), the other parameters
+        predicted along the secant through the last two values inside and re-optimised there
+        (:func:`_polish_profile`). The scan and the bisection put the other parameters on
+        straight lines (as at the optimum or the value inside, or on the Laplace path), and
+        where the valley bends (``a`` against ``h_min`` and the viscosity) they overstate
+        the profile, so the interval is narrower than the profile likelihood's. Every profile
+        point inside the threshold is inside the 95 % region, so with this on the parameters
+        with a prior (the viscosity among them) also have their intervals widened to span
+        those points. 0 (the default) turns both off. Measured in session 25 (seed 0, 2
+        devices; benchmarks/README, "Profiles followed past their ends"), with 4: the
+        coverage study held 30/30 as without it, and every ``a`` interval moved, most wider
+        (case 1's [61, 241] µm became [41, 499], its truth 85; case 9's lower end 38 → 25
+        µm), five ``drag_torque`` intervals and one viscosity interval ([0.31, 0.76] →
+        [0.31, 0.92] Pa s) too; but the ten fits took 571 s against 426–457 s in sessions
+        23–24, the companion study's fits about 40 % longer, for no interval that newly
+        holds its truth. On the pair II oil-jet shared file it does not reach the truth either: that
+        file's profile is rough at the scale of a step (Δcost −19 and +22 at 337 and 363 µm).
     profile_roughness : widen the profile threshold's noise allowance to the measured spread
         of the cost at :data:`PROFILE_JITTER` steps from the optimum (in z, 1–2 % of the
         parameter), when that exceeds the analytic Monte Carlo allowance
@@ -348,6 +368,7 @@ class FitOptions:
     profile_rounds: int = 1
     polish_iterations: int = 1
     profile_bisections: int = 4
+    profile_continuation: int = 0
     profile_roughness: bool = True
     profile_screen: int = 6
     recentre_rounds: int = 0
@@ -376,6 +397,7 @@ class FitOptions:
             max_iterations=3,
             profile_rounds=0,
             profile_bisections=0,
+            profile_continuation=0,
         )
         return cls(**{**preset, **overrides})
 
@@ -388,7 +410,11 @@ class FitOptions:
         and T_b itself). Measured (session 16, joint fit of a backlash sweep): the bisection
         and the polish took 200 of the 645 s to the end of the first profile stage."""
         preset = dict(
-            profile_rounds=0, profile_bisections=0, profile_roughness=False, recentre_rounds=0
+            profile_rounds=0,
+            profile_bisections=0,
+            profile_continuation=0,
+            profile_roughness=False,
+            recentre_rounds=0,
         )
         return cls(**{**preset, **overrides})
 
@@ -405,7 +431,13 @@ class FitOptions:
             raise RattlefitError(
                 f"FitOptions.regime must be 'recording' or 'common', got {self.regime!r}"
             )
-        counts = ("profile_rounds", "profile_bisections", "profile_screen", "recentre_rounds")
+        counts = (
+            "profile_rounds",
+            "profile_bisections",
+            "profile_continuation",
+            "profile_screen",
+            "recentre_rounds",
+        )
         if any(getattr(self, k) < 0 for k in counts):
             raise RattlefitError(f"FitOptions.{', '.join(counts)} must be ≥ 0")
         if self.max_iterations is not None and self.max_iterations < 1:
@@ -1498,6 +1530,29 @@ def identify(
                 _keep_lower(profiles[i], t, float(dc), zk)
             # a polished value that fell inside leaves a wide bracket behind it
             bisect_ends(profiles, threshold, z, cov, profile_costs)
+        if options.profile_continuation:
+            say("following the profiles past their ends …")
+
+            def polish(starts, fixed):
+                steps = np.stack([problem.fd_steps(zk) for zk in starts])
+                return _polish_profile(
+                    lambda pts: _residuals(problem, pts),
+                    starts,
+                    fixed,
+                    steps,
+                    iterations=options.polish_iterations,
+                )
+
+            n_cont = _continue_profiles(
+                profiles,
+                threshold,
+                profile_costs,
+                polish,
+                lambda i, t: CONTINUATION_LOG_STEP / float(specs[i].dlog_dz(t)),
+                rounds=options.profile_continuation,
+            )
+            say(f"  {n_cont} continuation point(s)")
+            bisect_ends(profiles, threshold, z, cov, profile_costs)
         if profile_costs.n_set_aside:
             say(
                 f"  {profile_costs.n_set_aside} of {profile_costs.n_screened} screened profile "
@@ -1521,6 +1576,8 @@ def identify(
     corr = cov / np.outer(np.maximum(sd, 1e-300), np.maximum(sd, 1e-300))
     for i, prof in profiles.items():
         z_lo[i], z_hi[i] = _profile_interval(prof, threshold)[0]
+    if options.profile_continuation:
+        _span_profile_points(profiles, threshold, z_lo, z_hi, specs)
 
     estimates = {}
     for i, s in enumerate(specs):
@@ -1611,6 +1668,11 @@ SCAN_SAME = 0.05
 PROFILE_RESOLUTION = 0.15
 #: … but not below this step in z.
 PROFILE_MIN_STEP = 0.01
+#: The first step of a profile continuation past an interval's end, in log of the
+#: parameter (:func:`_continue_profiles`).
+CONTINUATION_LOG_STEP = 0.15
+#: The factor by which a continuation's step grows after a round that stayed inside.
+CONTINUATION_GROWTH = 1.5
 #: Steps (in z) from the optimum at which ``FitOptions.profile_roughness`` measures the cost.
 PROFILE_JITTER = (-0.02, -0.01, 0.01, 0.02)
 #: :class:`_ProfileCosts` completes a profile point's realisations only where its screened
@@ -1841,6 +1903,95 @@ def _bisect_profile_ends(
         for (i, t, g), c in zip(todo, costs, strict=True):
             _keep_lower(profiles[i], t, float(c), g)
     return n_points
+
+
+def _continue_profiles(
+    profiles: dict,
+    threshold: float,
+    cost_of_points: Callable[[np.ndarray], np.ndarray],
+    polish: Callable[[np.ndarray, list[int]], np.ndarray],
+    step: Callable[[int, float], float],
+    *,
+    rounds: int,
+) -> int:
+    """Follow each profile past its interval's ends by continuation, in place.
+
+    For each end with a value outside (:func:`_profile_interval`'s brackets), a round tries
+    one value further out than the last value inside ``t_in``, by ``step(i, t_in)`` (in z)
+    times :data:`CONTINUATION_GROWTH` to the power of the rounds in which this end moved out
+    less those in which it did not (an end stops where the first step fails, at the range's
+    end, or after ``rounds``). The other parameters start from two predictions, as at the
+    value inside and along the secant through it and the nearest value inside at least half
+    a step further in (a predictor–corrector continuation), and
+    are re-optimised by ``polish(points, fixed)`` with parameter i held; ``cost_of_points``
+    maps points (N, P) to their Δcost, all of a round in one batch.
+
+    The scan's straight paths leave a valley that bends (``a`` against the viscosity under
+    oil jet, where the squeeze force saturates in ``a``); a continuation follows it as far
+    as it stays below the threshold. Returns the number of points evaluated.
+    """
+    grown: dict[tuple[int, int], int] = {}
+    stopped: set[tuple[int, int]] = set()
+    n_points = 0
+    for _ in range(rounds):
+        todo = []
+        for i, prof in profiles.items():
+            for t_in, t_out in _profile_interval(prof, threshold)[1]:
+                side = 1 if t_out > t_in else -1
+                key = (i, side)
+                if key in stopped:
+                    continue
+                h = step(i, t_in) * CONTINUATION_GROWTH ** grown.get(key, 0)
+                # past a value outside if need be: its guesses may have left the valley
+                t_new = float(np.clip(t_in + side * h, -Z_END, Z_END))
+                if t_new == t_in:
+                    stopped.add(key)
+                    continue
+                z_in = np.asarray(prof[t_in][1], dtype=float)
+                inner = [
+                    t
+                    for t in sorted(prof, key=lambda t: abs(t - t_in))
+                    if (t - t_in) * side < 0 and prof[t][0] < threshold
+                ]
+                far = [t for t in inner if abs(t - t_in) >= 0.5 * h]
+                guesses = [z_in.copy()]
+                if inner:
+                    t_prev = far[0] if far else inner[-1]
+                    slope = (z_in - np.asarray(prof[t_prev][1])) / (t_in - t_prev)
+                    guesses.append(np.clip(z_in + slope * (t_new - t_in), -Z_END, Z_END))
+                for g in guesses:
+                    g[i] = t_new
+                if len(guesses) == 2 and np.max(np.abs(guesses[1] - guesses[0])) < SCAN_SAME:
+                    guesses.pop()
+                todo += [(key, t_new, g) for g in guesses]
+        if not todo:
+            break
+        ends = polish(np.stack([g for _, _, g in todo]), [key[0] for key, _, _ in todo])
+        costs = cost_of_points(ends)
+        n_points += len(todo)
+        best: dict[tuple[int, int], float] = {}
+        for (key, t_new, _), zk, dc in zip(todo, ends, costs, strict=True):
+            _keep_lower(profiles[key[0]], t_new, float(dc), zk)
+            best[key] = min(best.get(key, np.inf), float(dc))
+        for key, dc in best.items():
+            if dc < threshold:
+                grown[key] = grown.get(key, 0) + 1
+            elif grown.get(key, 0) > 0:
+                grown[key] -= 1  # too far for the predictor: a shorter step next round
+            else:
+                stopped.add(key)
+    return n_points
+
+
+def _span_profile_points(profiles: dict, threshold: float, z_lo, z_hi, specs) -> None:
+    """Widen the intervals of the parameters with a prior (``z_lo``, ``z_hi``, in place) to
+    span every profile point inside the ``threshold``: each is inside the 95 % region, so its
+    value of every parameter is inside that parameter's profile interval."""
+    inside = [zk for prof in profiles.values() for dc, zk in prof.values() if dc < threshold]
+    for j, s in enumerate(specs):
+        if s.log_sd is not None and inside:
+            values = [float(zk[j]) for zk in inside]
+            z_lo[j], z_hi[j] = min(z_lo[j], min(values)), max(z_hi[j], max(values))
 
 
 def _admit_rivals(profiles: dict, others, dcosts, threshold: float) -> list[np.ndarray]:
