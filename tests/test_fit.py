@@ -242,7 +242,12 @@ SHARED_CASES = [
             ),
             pytest.mark.xfail(
                 strict=False,
-                reason="issue 3 open. Session 24 with FitOptions(nuisance_starts=None, "
+                reason="issue 3 open. Session 25, the defaults now following the profiles "
+                "past their ends (profile_continuation=4; seed 0, two devices): all three truths "
+                "inside, in the wide intervals of a flagged poor fit (χ² 332 on 28: a [0.043, 5] "
+                "mm, T_b [0.0048, 0.094] N m, μ [0.22, 0.58] Pa s); kept xfail until one device "
+                "is measured too. "
+                "Session 24 with FitOptions(nuisance_starts=None, "
                 "screen='nearest') (seed 0, two devices): χ² 45 on 28, not flagged, T_b "
                 "[0.0215, 0.0282] N m inside, but a [191, 357] µm and μ [0.381, 0.519] Pa s "
                 "miss their 1 mm and 0.348: the fit sits at the lower end of a curved valley "
