@@ -276,7 +276,7 @@ class FitOptions:
         ends flagged at χ² 332 on 28 and whose ``a`` interval [113, 453] µm missed its 1 mm
         without it, now reports ``a`` [0.043, 5] mm, ``drag_torque`` [0.0048, 0.094] N m and
         μ [0.22, 0.58] Pa s: a poor fit that says so in its intervals too, all three truths
-        inside. The mild shared file's identify takes about 80 s instead of 60 s.
+        inside. The mild shared file's identify takes 82–87 s instead of 61–63 s.
     profile_roughness : widen the profile threshold's noise allowance to the measured spread
         of the cost at :data:`PROFILE_JITTER` steps from the optimum (in z, 1–2 % of the
         parameter), when that exceeds the analytic Monte Carlo allowance
