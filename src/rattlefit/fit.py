@@ -1428,6 +1428,17 @@ def identify(
         if n:
             say(f"  bisected the profile intervals' ends ({n} points)")
 
+    def polish(starts, fixed):
+        # the other parameters re-optimised at each point, parameter fixed[k] held
+        steps = np.stack([problem.fd_steps(zk) for zk in starts])
+        return _polish_profile(
+            lambda pts: _residuals(problem, pts),
+            starts,
+            fixed,
+            steps,
+            iterations=options.polish_iterations,
+        )
+
     recentred = 0
     for recentre in range(options.recentre_rounds + 1):
         say("re-estimating the spread at the optimum and the Laplace covariance …")
@@ -1520,15 +1531,7 @@ def identify(
             if not todo:
                 break
             say(f"re-optimising the other parameters at {len(todo)} profile value(s) …")
-            starts = np.stack([profiles[i][t][1] for i, t in todo])
-            steps = np.stack([problem.fd_steps(zk) for zk in starts])
-            ends = _polish_profile(
-                lambda pts: _residuals(problem, pts),
-                starts,
-                [i for i, _ in todo],
-                steps,
-                iterations=options.polish_iterations,
-            )
+            ends = polish(np.stack([profiles[i][t][1] for i, t in todo]), [i for i, _ in todo])
             for (i, t), zk, dc in zip(todo, ends, profile_costs(ends), strict=True):
                 polished.add((i, t))
                 _keep_lower(profiles[i], t, float(dc), zk)
@@ -1536,17 +1539,6 @@ def identify(
             bisect_ends(profiles, threshold, z, cov, profile_costs)
         if options.profile_continuation:
             say("following the profiles past their ends …")
-
-            def polish(starts, fixed):
-                steps = np.stack([problem.fd_steps(zk) for zk in starts])
-                return _polish_profile(
-                    lambda pts: _residuals(problem, pts),
-                    starts,
-                    fixed,
-                    steps,
-                    iterations=options.polish_iterations,
-                )
-
             n_cont = _continue_profiles(
                 profiles,
                 threshold,
@@ -1926,9 +1918,9 @@ def _continue_profiles(
     less those in which it did not (an end stops where the first step fails, at the range's
     end, or after ``rounds``). The other parameters start from two predictions, as at the
     value inside and along the secant through it and the nearest value inside at least half
-    a step further in (a predictor–corrector continuation), and
-    are re-optimised by ``polish(points, fixed)`` with parameter i held; ``cost_of_points``
-    maps points (N, P) to their Δcost, all of a round in one batch.
+    a step further in (a predictor–corrector continuation), and are re-optimised by
+    ``polish(points, fixed)`` with parameter i held; ``cost_of_points`` maps points (N, P)
+    to their Δcost, all of a round in one batch.
 
     The scan's straight paths leave a valley that bends (``a`` against the viscosity under
     oil jet, where the squeeze force saturates in ``a``); a continuation follows it as far
