@@ -34,8 +34,9 @@ import time
 import numpy as np
 
 import rattlefit as rf
-from rattlefit.fit import FitOptions, film_names, identify, parse_prior
+from rattlefit.fit import FitOptions, identify
 from rattlefit.oil import dynamic_viscosity
+from rattlefit.parameters import film_names, parse_prior
 from rattlefit.recording import OperatingPoint
 from rattlefit.synthetic import synthesize
 
@@ -80,7 +81,8 @@ def main() -> None:
         action="append",
         default=[],
         metavar="NAME=CENTER:LOG_SD",
-        help="replace a nuisance's prior (rattlefit.fit.parse_prior), e.g. min_film=2e-6:0.1",
+        help="replace a nuisance's prior (rattlefit.parameters.parse_prior), e.g. "
+        "min_film=2e-6:0.1",
     )
     args = ap.parse_args()
     overrides = {k: getattr(args, k) for k in ("rtol", "dither") if getattr(args, k) is not None}

@@ -4,6 +4,7 @@ These are statistical checks: each fit is seeded, so each test is reproducible, 
 compares the reported 95 % intervals with a truth the fit never saw.
 """
 
+import functools
 import json
 import math
 import os
@@ -20,36 +21,39 @@ from rattlefit.ensemble import band_sigma as _band_sigma
 from rattlefit.ensemble import chaotic_part as _chaotic_part
 from rattlefit.ensemble import shrunk_correlation
 from rattlefit.fit import (
-    PROFILE_JITTER,
-    PROFILE_MIN_STEP,
-    PROFILE_RESOLUTION,
     START_POINTS,
     START_RANGES,
     FitOptions,
-    ParameterSpec,
-    _admit_rivals,
-    _bisect_profile_ends,
     _build,
-    _continue_profiles,
     _debiased_information,
     _estimate,
     _evaluate,
-    _keep_lower,
+    _evaluate_realisations,
     _lm_steps,
-    _lower_profile_point,
-    _polish_profile,
-    _profile_guesses,
-    _profile_interval,
-    _profile_threshold,
-    _ProfileCosts,
     _screen_features,
-    _span_profile_points,
     _starting_points,
-    _threshold_crossing,
     identify,
-    nuisance_prior,
 )
 from rattlefit.oil import dynamic_viscosity
+from rattlefit.parameters import ParameterSpec, nuisance_prior
+from rattlefit.profile import (
+    PROFILE_JITTER,
+    PROFILE_MIN_STEP,
+    PROFILE_RESOLUTION,
+    SCREEN_FACTOR,
+    ProfileCosts,
+    admit_rivals,
+    bisect_profile_ends,
+    continue_profiles,
+    keep_lower,
+    lower_profile_point,
+    polish_profile,
+    profile_guesses,
+    profile_interval,
+    profile_threshold,
+    span_profile_points,
+    threshold_crossing,
+)
 from rattlefit.recording import OperatingPoint, read_recording
 from rattlefit.synthetic import PAPER_OIL, synthesize
 
@@ -329,7 +333,7 @@ def test_features_do_not_depend_on_how_the_rows_are_chunked(monkeypatch, mild_re
     # each point's features come back in the caller's order: as simulated one at a time
     alone = np.concatenate([_evaluate(problem, zs[k : k + 1]) for k in range(2)])
     np.testing.assert_allclose(alone, out[24], rtol=1e-13, atol=0)
-    # a point's realisations simulated in two parts (_ProfileCosts) are the same simulations
+    # a point's realisations simulated in two parts (ProfileCosts) are the same simulations
     parts = [_evaluate(problem, zs, realisations=r) for r in ([4, 0], [1, 2, 3, 5])]
     joined = np.concatenate(parts, axis=2)[:, :, [1, 2, 3, 4, 0, 5]]
     np.testing.assert_allclose(joined, out[24], rtol=1e-13, atol=0)
@@ -421,7 +425,7 @@ def test_the_noise_model_reports_the_share_of_the_recordings_regime(mild_recordi
 
 
 def test_profile_points_far_outside_are_set_aside_after_a_few_realisations(mild_recording):
-    # _ProfileCosts simulates each point with the first `screen` realisations, and the rest
+    # ProfileCosts simulates each point with the first `screen` realisations, and the rest
     # only where its Δcost is not already far above the threshold. A completed point's cost
     # must be exactly that of all realisations at once; a set-aside one keeps a screened
     # Δcost above the limit. Six points on one device (a chunk of 24 rows, 6 × 4 screened):
@@ -444,9 +448,11 @@ def test_profile_points_far_outside_are_set_aside_after_a_few_realisations(mild_
     points = np.stack(
         [z0, near[1], near[2], *(np.where(np.arange(len(z0)) == 0, t, z0) for t in far), z0 + 0.02]
     )
-    whole = _ProfileCosts(problem, y0, cost_of, per_near, near, threshold=0.05, screen=0)
-    raced = _ProfileCosts(problem, y0, cost_of, per_near, near, threshold=0.05, screen=4)
-    assert whole.limit is None and raced.limit >= fit.SCREEN_FACTOR * 0.05
+    evaluate = functools.partial(_evaluate_realisations, problem, y0)
+    chunk = fit._chunk_size()
+    whole = ProfileCosts(evaluate, cost_of, per_near, near, threshold=0.05, screen=0, chunk=chunk)
+    raced = ProfileCosts(evaluate, cost_of, per_near, near, threshold=0.05, screen=4, chunk=chunk)
+    assert whole.limit is None and raced.limit >= SCREEN_FACTOR * 0.05
     exact, dc = whole(points), raced(points)
     kept = dc <= raced.limit
     assert raced.n_set_aside == np.sum(~kept) >= 1  # a far film is plainly worse
@@ -651,9 +657,9 @@ def test_debiased_information_removes_the_jacobian_noise():
 def test_threshold_crossing_interpolates_the_profile():
     ts = np.array([-2.0, -1.0, 0.0, 1.0, 2.0])
     dc = ts**2  # a quadratic profile: Δcost = 3 is crossed at ±√3
-    assert _threshold_crossing(ts, dc, 3, 4, 3.0) == pytest.approx(1.0 + (3 - 1) / 3)
-    assert _threshold_crossing(ts, dc, 1, 0, 3.0) == pytest.approx(-1.0 - (3 - 1) / 3)
-    assert _threshold_crossing(ts, dc, 4, 5, 3.0) == 2.0  # no value outside: the last inside
+    assert threshold_crossing(ts, dc, 3, 4, 3.0) == pytest.approx(1.0 + (3 - 1) / 3)
+    assert threshold_crossing(ts, dc, 1, 0, 3.0) == pytest.approx(-1.0 - (3 - 1) / 3)
+    assert threshold_crossing(ts, dc, 4, 5, 3.0) == 2.0  # no value outside: the last inside
 
 
 def test_band_sigma_adds_the_floor_uncertainty_where_the_floor_dominates():
@@ -712,7 +718,7 @@ def test_polish_profile_reaches_the_profile_minimum():
         return _valley(points)
 
     starts = np.array([[1.5, 0.0, 0.0], [-1.0, 0.5, 2.0], [0.3, 2 * np.sin(0.3), 0.09]])
-    ends = _polish_profile(residuals, starts, [0, 0, 0], np.full((3, 3), 1e-4), iterations=2)
+    ends = polish_profile(residuals, starts, [0, 0, 0], np.full((3, 3), 1e-4), iterations=2)
     cost = np.sum(_valley(ends) ** 2, axis=1)
     assert cost == pytest.approx((starts[:, 0] - 0.3) ** 2, abs=5e-3)
     assert np.array_equal(ends[:, 0], starts[:, 0])  # the profiled coordinate stays fixed
@@ -727,11 +733,11 @@ def test_polish_profile_reaches_the_profile_minimum():
 def test_profile_interval_spans_values_below_the_threshold():
     z = np.zeros(2)
     prof = {t: (t**2, z) for t in (-3.0, -2.0, -1.0, 0.0, 1.0, 2.0)}
-    (lo, hi), brackets = _profile_interval(prof, 3.0)
+    (lo, hi), brackets = profile_interval(prof, 3.0)
     assert (lo, hi) == pytest.approx((-1.0 - 2 / 3, 1.0 + 2 / 3))
     assert brackets == [(-1.0, -2.0), (1.0, 2.0)]  # (inside, outside): they decide the ends
     prof[2.0] = (1.0, z)  # lowered (e.g. re-optimised): the upper end runs to the last value
-    (lo, hi), brackets = _profile_interval(prof, 3.0)
+    (lo, hi), brackets = profile_interval(prof, 3.0)
     assert hi == 2.0 and brackets == [(-1.0, -2.0)]
 
 
@@ -776,10 +782,10 @@ def test_rivals_below_the_threshold_join_the_profiles_and_no_others():
     ts = (-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0)
     profiles = {i: {t: (t**2, np.full(2, t)) for t in ts} for i in (0, 1)}
     inside, outside = np.array([2.5, -2.5]), np.array([-2.8, 2.8])
-    rivals = _admit_rivals(profiles, [inside, outside], [2.0, 3.5], 3.0)
+    rivals = admit_rivals(profiles, [inside, outside], [2.0, 3.5], 3.0)
     assert len(rivals) == 1 and np.array_equal(rivals[0], inside)
-    (lo0, hi0), _ = _profile_interval(profiles[0], 3.0)
-    (lo1, hi1), _ = _profile_interval(profiles[1], 3.0)
+    (lo0, hi0), _ = profile_interval(profiles[0], 3.0)
+    (lo1, hi1), _ = profile_interval(profiles[1], 3.0)
     assert hi0 == pytest.approx(2.5 + 0.5 / 7) and lo1 == pytest.approx(-2.5 - 0.5 / 7)
     assert lo0 == pytest.approx(-1 - 2 / 3) and hi1 == pytest.approx(1 + 2 / 3)  # unmoved
     assert -2.8 not in profiles[0] and 2.8 not in profiles[1]
@@ -788,10 +794,10 @@ def test_rivals_below_the_threshold_join_the_profiles_and_no_others():
 def test_profile_threshold_covers_the_truth_of_noisy_profiles():
     # χ²₁'s 95 % quantile plus 1.645 sd of a cost difference's noise: the analytic allowance,
     # or the rms of the Δcost a step from the optimum where that is larger
-    assert _profile_threshold(2.0) == pytest.approx(1.959964**2 + 1.645 * 2.0, rel=1e-6)
-    assert _profile_threshold(2.0, np.array([1.0, -1.0])) == _profile_threshold(2.0)
-    assert _profile_threshold(2.0, np.array([6.0, -6.0, 6.0])) == pytest.approx(
-        _profile_threshold(6.0)
+    assert profile_threshold(2.0) == pytest.approx(1.959964**2 + 1.645 * 2.0, rel=1e-6)
+    assert profile_threshold(2.0, np.array([1.0, -1.0])) == profile_threshold(2.0)
+    assert profile_threshold(2.0, np.array([6.0, -6.0, 6.0])) == pytest.approx(
+        profile_threshold(6.0)
     )
     # Monte Carlo: a parameter's profile is (t − t̂)² (the truth at 0, the estimate t̂ drawn
     # as N(0, 1)), each scanned value's cost with independent noise of sd s/√2, the
@@ -813,16 +819,16 @@ def test_profile_threshold_covers_the_truth_of_noisy_profiles():
         prof = {t_hat + o: (delta(t_hat + o), None) for o in offsets} | {t_hat: (0.0, None)}
         jitter = np.array([delta(t_hat + h) for h in PROFILE_JITTER])
         for key, th in (
-            ("analytic", _profile_threshold(s_mc)),
-            ("rough", _profile_threshold(s_mc, jitter)),
+            ("analytic", profile_threshold(s_mc)),
+            ("rough", profile_threshold(s_mc, jitter)),
         ):
-            (lo, hi), _ = _profile_interval(prof, th)
+            (lo, hi), _ = profile_interval(prof, th)
             hits[key] += lo <= 0.0 <= hi
     assert hits["analytic"] >= 0.93 * n and hits["rough"] >= 0.98 * n, hits
 
 
 def test_bisection_finds_the_profile_ends_a_coarse_scan_misses():
-    # a profile Δ(t) = 100 (t − 0.3)² of parameter 0 of two, scanned as _profile_scan does:
+    # a profile Δ(t) = 100 (t − 0.3)² of parameter 0 of two, scanned as profile_scan does:
     # at the optimum, at ±1 and ±2 of its Laplace sd (0.05) and at coarse fractions of the
     # range. The exact 95 % ends are 0.3 ± √3.84/10 = 0.3 ± 0.196, well beyond ±2 sd.
     z = np.array([0.3, 0.0])
@@ -834,12 +840,12 @@ def test_bisection_finds_the_profile_ends_a_coarse_scan_misses():
 
     ts = [-8.0, -3.0, 0.2, 0.25, 0.3, 0.35, 0.4, 3.0, 8.0]
     profiles = {0: {t: (float(delta([[t, 0.0]])[0]), np.array([t, 0.0])) for t in ts}}
-    (lo0, hi0), _ = _profile_interval(profiles[0], threshold)
+    (lo0, hi0), _ = profile_interval(profiles[0], threshold)
     # linear across (0.4, 3.0), where Δ jumps from 1 to 729: the end sticks to 0.4
     assert hi0 < 0.42 and lo0 > 0.18
 
-    n = _bisect_profile_ends(profiles, threshold, z, cov, delta, rounds=12)
-    (lo, hi), brackets = _profile_interval(profiles[0], threshold)
+    n = bisect_profile_ends(profiles, threshold, z, cov, delta, rounds=12)
+    (lo, hi), brackets = profile_interval(profiles[0], threshold)
     assert n > 0 and hi == pytest.approx(0.3 + np.sqrt(threshold) / 10, abs=0.01)
     # each bracket is now narrower than the resolution asked for (or the minimum step)
     width = max(PROFILE_RESOLUTION * (hi - lo), PROFILE_MIN_STEP)
@@ -862,7 +868,7 @@ def test_continuation_follows_a_bent_valley_that_the_straight_scan_leaves():
         return np.sum(_narrow_bent_valley(points) ** 2, axis=1)
 
     def polish(starts, fixed):
-        return _polish_profile(_narrow_bent_valley, starts, fixed, np.full(starts.shape, 1e-4))
+        return polish_profile(_narrow_bent_valley, starts, fixed, np.full(starts.shape, 1e-4))
 
     threshold = 3.84
     exact = brentq(lambda t: t**2 + (0.2 * np.sin(t)) ** 2 - threshold, 0.5, 3.0)
@@ -870,31 +876,31 @@ def test_continuation_follows_a_bent_valley_that_the_straight_scan_leaves():
     cov = np.diag([0.5**2, 1.01, 1.0])
     cov[0, 1] = cov[1, 0] = 0.5  # the Laplace path: the valley's tangent z1 = 2 z0
     profiles = {0: {0.0: (0.0, z)}}
-    for t in (-8.0, -3.0, -1.0, -0.5, 0.5, 1.0, 3.0, 8.0):  # as _profile_scan: both guesses
-        for g in _profile_guesses(z, cov, 0, t):
-            _keep_lower(profiles[0], t, float(delta(g[None])[0]), g)
-    _bisect_profile_ends(profiles, threshold, z, cov, delta, rounds=4)
-    (lo, hi), _ = _profile_interval(profiles[0], threshold)
+    for t in (-8.0, -3.0, -1.0, -0.5, 0.5, 1.0, 3.0, 8.0):  # as profile_scan: both guesses
+        for g in profile_guesses(z, cov, 0, t):
+            keep_lower(profiles[0], t, float(delta(g[None])[0]), g)
+    bisect_profile_ends(profiles, threshold, z, cov, delta, rounds=4)
+    (lo, hi), _ = profile_interval(profiles[0], threshold)
     # the tangent and the value inside both leave the floor before the ends: the scan and
     # its bisection stop short of them
     assert hi < 0.85 * exact and lo > -0.85 * exact
 
-    n = _continue_profiles(profiles, threshold, delta, polish, lambda i, t: 0.25, rounds=6)
-    _bisect_profile_ends(profiles, threshold, z, cov, delta, rounds=4)
-    (lo, hi), _ = _profile_interval(profiles[0], threshold)
+    n = continue_profiles(profiles, threshold, delta, polish, lambda i, t: 0.25, rounds=6)
+    bisect_profile_ends(profiles, threshold, z, cov, delta, rounds=4)
+    (lo, hi), _ = profile_interval(profiles[0], threshold)
     assert n > 0
     assert hi == pytest.approx(exact, abs=0.1) and lo == pytest.approx(-exact, abs=0.1)
     # every point inside is on the floor, and the nuisance's interval is widened to span them
     z_lo, z_hi = np.array([lo, -0.5, -1.0]), np.array([hi, 0.5, 1.0])
     specs = [SimpleNamespace(log_sd=v) for v in (None, 10.0, None)]
-    _span_profile_points(profiles, threshold, z_lo, z_hi, specs)
+    span_profile_points(profiles, threshold, z_lo, z_hi, specs)
     assert z_hi[1] == pytest.approx(2 * np.sin(exact), abs=0.15)
     assert z_lo[1] == pytest.approx(-2 * np.sin(exact), abs=0.15)
     assert (z_lo[2], z_hi[2]) == (-1.0, 1.0)  # no prior: a free parameter's is its profile's
     # past the true ends the valley's cost exceeds the threshold: a further continuation
     # spends one round (two guesses at each end) and does not run past them
-    n = _continue_profiles(profiles, threshold, delta, polish, lambda i, t: 0.25, rounds=6)
-    (lo, hi), _ = _profile_interval(profiles[0], threshold)
+    n = continue_profiles(profiles, threshold, delta, polish, lambda i, t: 0.25, rounds=6)
+    (lo, hi), _ = profile_interval(profiles[0], threshold)
     assert n <= 4 and hi == pytest.approx(exact, abs=0.1) and lo == pytest.approx(-exact, abs=0.1)
 
 
@@ -907,9 +913,9 @@ def test_a_profile_clearly_below_the_optimum_is_where_the_fit_starts_again():
             0: {t: (100.0 * ((t - 0.5) ** 2 - (z0 - 0.5) ** 2), np.array([t, t - 0.3])) for t in ts}
         }
 
-    dc, z = _lower_profile_point(profile(0.3), allowance=2.0)
+    dc, z = lower_profile_point(profile(0.3), allowance=2.0)
     assert dc == pytest.approx(-4.0) and np.allclose(z, [0.5, 0.2])
     # within the Monte Carlo allowance, or at the optimum itself, nothing moves
-    assert _lower_profile_point(profile(0.3), allowance=5.0) is None
-    assert _lower_profile_point(profile(0.5), allowance=0.0) is None
-    assert _lower_profile_point({}, allowance=0.0) is None
+    assert lower_profile_point(profile(0.3), allowance=5.0) is None
+    assert lower_profile_point(profile(0.5), allowance=0.0) is None
+    assert lower_profile_point({}, allowance=0.0) is None

@@ -17,7 +17,8 @@ from scipy import stats
 
 import rattlefit as rf
 from rattlefit.errors import RattlefitError
-from rattlefit.fit import FitOptions, NoiseModel, ParameterSpec, identify
+from rattlefit.fit import FitOptions, NoiseModel, identify
+from rattlefit.parameters import ParameterSpec
 from rattlefit.recording import OperatingPoint
 from rattlefit.sample import (
     LogPosterior,

@@ -93,7 +93,7 @@ def _prior_option(func):
 
 def _priors(texts) -> dict:
     """``--prior`` values → ``FitOptions.priors``; a bad one is a usage error naming it."""
-    from .fit import parse_prior
+    from .parameters import parse_prior
 
     priors = {}
     for text in texts:

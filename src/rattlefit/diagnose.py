@@ -54,17 +54,9 @@ from scipy import stats
 from ._util import stamped
 from .effects import EFFECTS, absent, effect_class
 from .errors import RattlefitError
-from .fit import (
-    Z_END,
-    FitOptions,
-    FitResult,
-    ParameterSpec,
-    _build,
-    _evaluate,
-    _polish_profile,
-    _release_states,
-    identify,
-)
+from .fit import FitOptions, FitResult, _build, _evaluate, _release_states, identify
+from .parameters import Z_END, ParameterSpec
+from .profile import polish_profile
 from .recording import Recording
 from .reproducibility import platform_info
 
@@ -235,7 +227,7 @@ def _gap_closed(chi2_without: float, chi2_with: float, dof: int) -> float:
 
 
 def effect_specs(name: str) -> tuple[ParameterSpec, ...]:
-    """The fitted fields of effect ``name`` as :class:`~rattlefit.fit.ParameterSpec`s named
+    """The fitted fields of effect ``name`` as :class:`~rattlefit.parameters.ParameterSpec`s named
     ``"<effect>.<field>"`` (no prior: log-uniform over the range)."""
     return tuple(
         ParameterSpec(f"{name}.{field}", unit, lo, hi, fd_log_step=0.3)
@@ -390,7 +382,7 @@ def diagnose(
             return z
         steps = np.minimum(prob.fd_steps(np.asarray(z)), 1.0)[None]
         rows = functools.partial(residual_rows, prob)
-        return _polish_profile(rows, z[None], [frozen], steps, iterations=options.iterations)[0]
+        return polish_profile(rows, z[None], [frozen], steps, iterations=options.iterations)[0]
 
     # the effects are fitted with the free parameters (a, T_b), the nuisances stay put; so
     # that an effect is not credited with what re-fitting a and T_b alone gains, the model

@@ -36,9 +36,9 @@ recording the model misses does not widen what another one measures well), and m
 of noisy ensemble means, and its expected noise, estimated from the paired realisations, is
 removed from ``JᵀJ`` so that noise does not pass for information. The Laplace interval is
 local and Gaussian, so the intervals of the free parameters (``a``, ``drag_torque``) come
-from a scan of their cost profiles over the whole range (:func:`_profile_scan`); at the
+from a scan of their cost profiles over the whole range (:func:`profile_scan`); at the
 scanned values that decide each interval's ends the other parameters are re-optimised
-(:func:`_polish_profile`), as a profile likelihood requires. A parameter whose interval runs
+(:func:`polish_profile`), as a profile likelihood requires. A parameter whose interval runs
 into its range's end is reported as *not identified*, with the one-sided bound the data do
 support (e.g. ``a ≥ …`` under oil-jet lubrication, where the squeeze force saturates once
 a ≫ √(2 R h_min); ``a ≤ …`` when dry flanks explain the data as well); one whose interval is
@@ -49,6 +49,7 @@ an estimate.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -59,69 +60,45 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 from scipy import stats
-from scipy.special import expit
 from scipy.stats import qmc
 
 from . import ensemble
 from ._util import array_namespace, stamped
 from .ensemble import chaotic_part, ensemble_mean, regime_weights, shrunk_correlation
 from .errors import RattlefitError
-from .model import DEFAULT_MIN_FILM, Effect, RattleModel, RattleParams
+from .model import Effect, RattleModel, RattleParams
 from .parallel import map_blocks
+from .parameters import (
+    Z_END,
+    ParameterSpec,
+    default_specs,
+    films_of,
+)
+from .profile import (
+    CONTINUATION_LOG_STEP,
+    PROFILE_JITTER,
+    SCAN_SAME,
+    Z95,
+    ProfileCosts,
+    admit_rivals,
+    bisect_profile_ends,
+    continue_profiles,
+    keep_lower,
+    lower_profile_point,
+    polish_profile,
+    profile_interval,
+    profile_scan,
+    profile_threshold,
+    span_profile_points,
+)
 from .recording import Recording
 from .reproducibility import platform_info
 from .rig import RigSetup, setup
 from .simulate import _static_options, quantised_relative_motion, solve_rows
 from .spectra import spectral_features
 
-Z95 = 1.959963984540054
 #: χ² p-value below which a fit is flagged as poor (:attr:`FitResult.poor_fit`).
 POOR_FIT_P = 1e-3
-CHI2_1_95 = Z95**2  # 95 % quantile of χ² with one degree of freedom
-
-
-@dataclasses.dataclass(frozen=True)
-class ParameterSpec:
-    """One fitted parameter: its range, optional log-normal prior and finite-difference step.
-
-    The value is ``lower · (upper/lower)^sigmoid(z)``. With ``center`` and ``log_sd`` the
-    residual gets the prior row ``(log v − log center) / log_sd``.
-    """
-
-    name: str
-    unit: str
-    lower: float
-    upper: float
-    center: float | None = None
-    log_sd: float | None = None
-    fd_log_step: float = 0.15
-
-    def __post_init__(self):
-        if not (0 < self.lower < self.upper):
-            raise RattlefitError(f"parameter {self.name}: need 0 < lower < upper")
-
-    @property
-    def log_range(self) -> float:
-        return math.log(self.upper / self.lower)
-
-    def value(self, z):
-        xp = array_namespace(z)
-        return self.lower * xp.exp(self.log_range * _sigmoid(z))
-
-    def z_of(self, value: float) -> float:
-        u = (math.log(value) - math.log(self.lower)) / self.log_range
-        u = min(max(u, 1e-6), 1 - 1e-6)
-        return math.log(u / (1 - u))
-
-    def dlog_dz(self, z):
-        """d(log value)/dz: converts a step in log value into a step in z."""
-        s = _sigmoid(z)
-        return self.log_range * s * (1 - s)
-
-
-def _sigmoid(z):
-    """The logistic function, in JAX while ``z`` is traced, else in numpy (scipy's expit)."""
-    return jax.nn.sigmoid(z) if array_namespace(z) is jnp else expit(z)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -198,11 +175,11 @@ class FitOptions:
         ``a`` still missed.
     n_refine : how many of the best starts are refined. Every other refined optimum (and the
         best start) whose cost in the profile likelihood lies below the profile threshold is
-        inside the 95 % region, and the reported intervals span it (:func:`_admit_rivals`).
+        inside the 95 % region, and the reported intervals span it (:func:`admit_rivals`).
     max_iterations : Levenberg–Marquardt steps per start; None (the default) gives
         :data:`LM_STEPS` per recording. Each recording adds its own rugged cost, and a joint
         fit whose iterate is still moving leaves lower candidates behind that the intervals
-        then span (:func:`_admit_rivals`). Measured on the synthetic backlash sweep of
+        then span (:func:`admit_rivals`). Measured on the synthetic backlash sweep of
         tests/test_fit.py (pair II, boundary, 10 % at 8 Hz, 65.0 and 65.4 mm; seed 0, 2
         devices, session 22): with 8 steps the joint optimum cost 161 (χ² 101 on 58), two
         candidates were inside the 95 % region and the joint ``T_b`` interval spanned 0.44 in
@@ -229,7 +206,7 @@ class FitOptions:
         setting them to 0.1 lowered χ² and with it the inflation, and three of seven fits
         then missed a truth, against one with both at 0.
     profile_rounds : rounds of re-optimising the other parameters at the profile values just
-        outside each free parameter's interval (:func:`_polish_profile`), each followed by
+        outside each free parameter's interval (:func:`polish_profile`), each followed by
         another bisection of the ends; 0 keeps the scan's two guesses. 1 since session 21
         (was 2): a second round re-optimises the values that the first round's bisection
         leaves just outside, which moves an end by at most that bracket (15 % of the
@@ -249,16 +226,16 @@ class FitOptions:
         faster.
     profile_bisections : rounds of bisecting the bracket of each profile interval's end
         (the last value inside and the first outside) where it is wide
-        (:func:`_bisect_profile_ends`), before and after each ``profile_rounds`` round.
+        (:func:`bisect_profile_ends`), before and after each ``profile_rounds`` round.
         Measured in session 15: on the joint fit of a synthetic backlash sweep (pair II,
         10 % at 8 Hz) it put the truth inside the ``drag_torque`` interval, which the coarse
         scan's interpolation had ended early; it costs about a fifth more wall time.
     profile_continuation : rounds of following each free parameter's profile past its
-        interval's ends by continuation (:func:`_continue_profiles`): from the last value
+        interval's ends by continuation (:func:`continue_profiles`): from the last value
         inside, a step further out (:data:`CONTINUATION_LOG_STEP` in log, growing by
         :data:`CONTINUATION_GROWTH` while the profile stays inside), the other parameters
         predicted along the secant through the last two values inside and re-optimised there
-        (:func:`_polish_profile`). The scan and the bisection put the other parameters on
+        (:func:`polish_profile`). The scan and the bisection put the other parameters on
         straight lines (as at the optimum or the value inside, or on the Laplace path), and
         where the valley bends (``a`` against ``h_min`` and the viscosity) they overstate
         the profile, so the interval is narrower than the profile likelihood's. Every profile
@@ -280,7 +257,7 @@ class FitOptions:
     profile_roughness : widen the profile threshold's noise allowance to the measured spread
         of the cost at :data:`PROFILE_JITTER` steps from the optimum (in z, 1–2 % of the
         parameter), when that exceeds the analytic Monte Carlo allowance
-        (:func:`_profile_threshold`). The profiles of a chaotic system are rough: on the mild
+        (:func:`profile_threshold`). The profiles of a chaotic system are rough: on the mild
         synthetic file of tests/test_fit.py the cost varies by 17.8 rms within 1–2 % of the
         optimum against 3.6 for Monte Carlo noise alone. On by default since session 17,
         measured (seed 0): the coverage study's 10 cases went from 28/30 to 29/30 intervals
@@ -294,7 +271,7 @@ class FitOptions:
         per free parameter per covariance realisation (a few per cent of a fit).
     profile_screen : the profile stage simulates each value with this many of the
         ``n_covariance_realisations`` first, and the rest only where its cost is not already
-        far above the profile threshold (:class:`_ProfileCosts`); 0 simulates every value
+        far above the profile threshold (:class:`ProfileCosts`); 0 simulates every value
         with all of them.
     recentre_rounds : how many times the Laplace and profile stages may start again from
         the lowest point of the profiles, when that lies below the optimum's cost by more
@@ -703,7 +680,7 @@ class _Problem(eqx.Module):
         ordered point, recording, realisation; ``y0`` (R, M, 2) replaces the problem's release
         states. ``realisations`` (indices into the M) keeps only those, each exactly as in the
         full set (its release state, its dither centred over all M, its encoder phase), so
-        that a point's realisations can be simulated in parts (:class:`_ProfileCosts`).
+        that a point's realisations can be simulated in parts (:class:`ProfileCosts`).
         """
         xp = array_namespace(zs, self.y0)  # numpy outside a trace: nothing to compile
         y0 = xp.asarray(self.y0 if y0 is None else y0)
@@ -894,6 +871,12 @@ def _evaluate(problem: _Problem, zs, y0=None, realisations=None) -> np.ndarray:
     return out[np.argsort(order)]
 
 
+def _evaluate_realisations(problem: _Problem, y0, zs, realisations) -> np.ndarray:
+    """:func:`_evaluate` with the release states ``y0`` first: the evaluation a
+    :class:`~rattlefit.profile.ProfileCosts` is given."""
+    return _evaluate(problem, zs, y0, realisations)
+
+
 @jax.custom_jvp
 def _residual(z, problem: _Problem):
     """Whitened residual (data rows, then prior rows) at ``z``.
@@ -1003,110 +986,6 @@ def _debiased_information(j_data: np.ndarray, noise: np.ndarray, j_prior: np.nda
 MIN_INFORMATION = 1e-6
 
 
-def film_names(lubrications: Sequence[str]) -> tuple[str, ...]:
-    """The name of the film half-length each recording uses: ``a`` when all share one
-    lubrication, else ``a[<lubrication>]`` (one film half-length per lubrication)."""
-    if len(set(lubrications)) <= 1:
-        return ("a",) * len(lubrications)
-    return tuple(f"a[{lub}]" for lub in lubrications)
-
-
-def _films_of(rigs: Sequence[RigSetup]) -> tuple[str, ...]:
-    """:func:`film_names` of the rigs' recordings."""
-    return film_names([rig.recording.operating.lubrication for rig in rigs])
-
-
-def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec, ...]:
-    """The fitted parameters with their prior ranges (SI units); ``priors`` replaces by name.
-
-    A fit across lubrications has one film half-length per lubrication (:func:`film_names`,
-    in the order the lubrications first appear); everything else but the backlashes is
-    shared.
-    """
-    films = _films_of(rigs) or ("a",)
-    specs = [
-        *(ParameterSpec(n, "m", 1e-6, 5e-3, fd_log_step=0.2) for n in dict.fromkeys(films)),
-        ParameterSpec("drag_torque", "N m", 2e-3, 0.5, fd_log_step=0.15),
-        ParameterSpec("viscosity_scale", "1", 0.2, 5.0, center=1.0, log_sd=0.25, fd_log_step=0.15),
-        ParameterSpec(
-            "stiffness_scale",
-            "1",
-            0.3,
-            3.0,
-            center=1.0,
-            log_sd=0.3,
-            fd_log_step=0.15,
-        ),
-        ParameterSpec(
-            "min_film", "m", 0.5e-6, 20e-6, center=DEFAULT_MIN_FILM, log_sd=0.7, fd_log_step=0.2
-        ),
-    ]
-    for k, rig in enumerate(rigs):
-        b = rig.geometry.backlash
-        sd = rig.geometry.backlash_std or 0.01 * b
-        rel = max(sd / b, 2e-3)
-        specs.append(
-            ParameterSpec(
-                f"backlash[{k}]",
-                "m",
-                b * (1 - 6 * rel),
-                b * (1 + 6 * rel),
-                center=b,
-                log_sd=rel,
-                fd_log_step=min(0.15, 1.5 * rel),
-            )
-        )
-    return tuple(priors.get(s.name, s) for s in specs)
-
-
-#: The nuisance parameters whose prior a caller may replace with :func:`nuisance_prior`: the
-#: recording-independent parameters of :func:`default_specs` that have a prior.
-NUISANCES = tuple(s.name for s in default_specs([], {}) if s.log_sd is not None)
-
-
-def nuisance_prior(name: str, center: float, log_sd: float) -> ParameterSpec:
-    """The prior of nuisance ``name`` (one of :data:`NUISANCES`) replaced by a log-normal one
-    with median ``center`` (in the parameter's unit: ``min_film`` in m, the scales as
-    factors) and standard deviation ``log_sd`` in the natural log; the range is kept. Pass it
-    as ``FitOptions(priors={name: nuisance_prior(name, ...)})``.
-
-    What the rig knows besides the recording belongs here: ``h_min`` from the flanks'
-    roughness, for instance. In mild rattle the data pin the squeeze film's momentum sink,
-    which scales as a³/h_min², so a is known only as well as ``h_min`` is (the default prior's
-    95 % factor 15.6 becomes about 6 in a).
-    """
-    if name not in NUISANCES:
-        raise RattlefitError(
-            f"prior {name!r}: not a nuisance parameter; expected one of {', '.join(NUISANCES)}"
-        )
-    (spec,) = (s for s in default_specs([], {}) if s.name == name)
-    if not (math.isfinite(center) and spec.lower < center < spec.upper):
-        raise RattlefitError(
-            f"prior {name}: centre {center:g} {spec.unit} is outside the range "
-            f"({spec.lower:g}, {spec.upper:g}) {spec.unit}"
-        )
-    if not (math.isfinite(log_sd) and log_sd > 0):
-        raise RattlefitError(f"prior {name}: log_sd must be a positive number, got {log_sd:g}")
-    return dataclasses.replace(spec, center=center, log_sd=log_sd)
-
-
-def parse_prior(text: str) -> tuple[str, ParameterSpec]:
-    """``"NAME=CENTER:LOG_SD"`` (e.g. ``"min_film=2e-6:0.1"``) → ``(name, spec)`` of
-    :func:`nuisance_prior`, for command lines."""
-    name, sep, rest = text.partition("=")
-    center, sep2, log_sd = rest.partition(":")
-    try:
-        if not (sep and sep2):
-            raise ValueError
-        values = float(center), float(log_sd)
-    except ValueError:
-        raise RattlefitError(
-            f"prior {text!r}: expected NAME=CENTER:LOG_SD, e.g. min_film=2e-6:0.1"
-        ) from None
-    name = name.strip()
-    return name, nuisance_prior(name, *values)
-
-
 def _build(
     recordings: Sequence[Recording], options: FitOptions, rng
 ) -> tuple[_Problem, list[RigSetup]]:
@@ -1144,7 +1023,7 @@ def _build(
             f"(its parameters: {', '.join(s.name for s in specs)})"
         )
     n_dither = max(m, options.n_noise_realisations, options.n_covariance_realisations)
-    films = _films_of(rigs)
+    films = films_of(rigs)
     weight = {**dict.fromkeys(films, 1.0), "drag_torque": 1.0, "viscosity_scale": 0.5}
     scale = np.array([weight.get(sp.name, 0.0) for sp in specs])
     dither = rng.normal(size=(n_dither, len(specs))) * scale * options.dither
@@ -1421,7 +1300,7 @@ def identify(
         return float(noise.quadratic(r) + 2 * np.sum(np.log(sig)) + np.sum(prior**2))
 
     def bisect_ends(profiles, threshold, zk, cov, profile_costs):
-        n = _bisect_profile_ends(
+        n = bisect_profile_ends(
             profiles, threshold, zk, cov, profile_costs, rounds=options.profile_bisections
         )
         profile_costs.complete_ends(profiles, threshold)
@@ -1431,7 +1310,7 @@ def identify(
     def polish(starts, fixed):
         # the other parameters re-optimised at each point, parameter fixed[k] held
         steps = np.stack([problem.fd_steps(zk) for zk in starts])
-        return _polish_profile(
+        return polish_profile(
             lambda pts: _residuals(problem, pts),
             starts,
             fixed,
@@ -1461,7 +1340,7 @@ def identify(
         var_cost = np.sum(4.0 * np.maximum(chi2_rec, dof_rec) / (n_cov + 1) / inflation**2)
         var_cost += 2.0 * n_data / noise.sigma_dof
         noise_sd = math.sqrt(2.0 * var_cost)  # of a difference of two costs
-        threshold = _profile_threshold(noise_sd)
+        threshold = profile_threshold(noise_sd)
 
         # the optimum, the other candidates (refined optima, the best start) distinct from
         # it, and with the roughness allowance the points 1–2 % away: one batched evaluation
@@ -1481,19 +1360,19 @@ def identify(
         dcost_near = costs_near[1:] - costs_near[0]
         if len(jitter):
             jitter_costs = dcost_near[: len(jitter)]
-            threshold = _profile_threshold(noise_sd, jitter_costs)
+            threshold = profile_threshold(noise_sd, jitter_costs)
             say(
                 f"  profile roughness: Δcost rms {np.sqrt(np.mean(jitter_costs**2)):.1f} "
                 f"within 1–2 % of the optimum (Monte Carlo alone: {noise_sd:.1f})"
             )
-        profile_costs = _ProfileCosts(
-            problem,
-            y0_cov,
+        profile_costs = ProfileCosts(
+            functools.partial(_evaluate_realisations, problem, y0_cov),
             cost_of,
             per_near[: 1 + len(jitter)],
             near[: 1 + len(jitter)],
             threshold,
             options.profile_screen,
+            chunk=_chunk_size(),
         )
         if profile_costs.limit is not None:
             say(
@@ -1502,8 +1381,8 @@ def identify(
                 f"(Δcost rms {profile_costs.noise:.1f} with {options.profile_screen} near the "
                 "optimum)"
             )
-        profiles = _profile_scan(problem, z, cov, profile_costs)
-        rivals = _admit_rivals(profiles, others, dcost_near[len(jitter) :], threshold)
+        profiles = profile_scan(specs, z, cov, profile_costs)
+        rivals = admit_rivals(profiles, others, dcost_near[len(jitter) :], threshold)
         profile_costs.complete_ends(profiles, threshold)
         if others:
             say(
@@ -1525,7 +1404,7 @@ def identify(
             todo = [
                 (i, t_out)
                 for i, prof in profiles.items()
-                for _, t_out in _profile_interval(prof, threshold)[1]
+                for _, t_out in profile_interval(prof, threshold)[1]
                 if (i, t_out) not in polished
             ]
             if not todo:
@@ -1534,12 +1413,12 @@ def identify(
             ends = polish(np.stack([profiles[i][t][1] for i, t in todo]), [i for i, _ in todo])
             for (i, t), zk, dc in zip(todo, ends, profile_costs(ends), strict=True):
                 polished.add((i, t))
-                _keep_lower(profiles[i], t, float(dc), zk)
+                keep_lower(profiles[i], t, float(dc), zk)
             # a polished value that fell inside leaves a wide bracket behind it
             bisect_ends(profiles, threshold, z, cov, profile_costs)
         if options.profile_continuation:
             say("following the profiles past their ends …")
-            n_cont = _continue_profiles(
+            n_cont = continue_profiles(
                 profiles,
                 threshold,
                 profile_costs,
@@ -1555,8 +1434,8 @@ def identify(
                 f"points set aside after {options.profile_screen} realisations "
                 f"({profile_costs.n_completed} completed later: they end a bracket)"
             )
-        # the optimum should be the profiles' minimum (see _lower_profile_point)
-        lower = _lower_profile_point(profiles, 1.645 * noise_sd)
+        # the optimum should be the profiles' minimum (see lower_profile_point)
+        lower = lower_profile_point(profiles, 1.645 * noise_sd)
         if lower is None:
             break
         dc_min, z_min = lower
@@ -1571,9 +1450,9 @@ def identify(
         recentred += 1
     corr = cov / np.outer(np.maximum(sd, 1e-300), np.maximum(sd, 1e-300))
     for i, prof in profiles.items():
-        z_lo[i], z_hi[i] = _profile_interval(prof, threshold)[0]
+        z_lo[i], z_hi[i] = profile_interval(prof, threshold)[0]
     if options.profile_continuation:
-        _span_profile_points(profiles, threshold, z_lo, z_hi, specs)
+        span_profile_points(profiles, threshold, z_lo, z_hi, specs)
 
     estimates = {}
     for i, s in enumerate(specs):
@@ -1636,7 +1515,7 @@ def identify(
 
 #: Candidates (refined optima, the best start) whose fit cost is within this many √(2·n_data)
 #: (the statistic's own fluctuation scale) of the best are tested against the profile
-#: threshold (:func:`_admit_rivals`); the rest are far outside the 95 % region.
+#: threshold (:func:`admit_rivals`); the rest are far outside the 95 % region.
 RIVAL_SCREEN = 2.0
 #: Where the starting points of (a, T_b) are spread (log-uniformly), m and N m.
 START_RANGES = ((5e-6, 2e-3), (5e-3, 0.2))  # (each film half-length, drag torque)
@@ -1650,472 +1529,6 @@ START_NUISANCE_SDS = 1.0
 LM_STEPS = 8
 #: Starts re-evaluated with all realisations beyond the ``n_refine`` that are refined.
 SCREEN_EXTRA = 5
-
-#: Range ends of the unconstrained coordinate (sigmoid(±8) is within 3.4e-4 of the end:
-#: a = 1.003 µm, for instance).
-Z_END = 8.0
-#: Where :func:`_profile_scan` evaluates each free parameter: fractions of its log range …
-SCAN_FRACTIONS = (0.0, 0.2, 0.4, 0.6, 0.8, 1.0)
-#: … and offsets from the optimum in Laplace standard deviations.
-SCAN_OFFSETS = (-2.0, -1.0, 1.0, 2.0)
-#: Largest difference (in z) between the scan's two guesses that still counts as one point.
-SCAN_SAME = 0.05
-#: :func:`_bisect_profile_ends` narrows each end's bracket to this fraction of its interval …
-PROFILE_RESOLUTION = 0.15
-#: … but not below this step in z.
-PROFILE_MIN_STEP = 0.01
-#: The first step of a profile continuation past an interval's end, in log of the
-#: parameter (:func:`_continue_profiles`).
-CONTINUATION_LOG_STEP = 0.15
-#: The factor by which a continuation's step grows after a round that stayed inside.
-CONTINUATION_GROWTH = 1.5
-#: Steps (in z) from the optimum at which ``FitOptions.profile_roughness`` measures the cost.
-PROFILE_JITTER = (-0.02, -0.01, 0.01, 0.02)
-#: :class:`_ProfileCosts` completes a profile point's realisations only where its screened
-#: Δcost is below this multiple of the profile threshold …
-SCREEN_FACTOR = 10.0
-#: … or below the threshold plus this many rms screened Δcosts near the optimum.
-SCREEN_SDS = 6.0
-
-
-def _profile_threshold(noise_sd: float, jitter_costs: np.ndarray | None = None) -> float:
-    """The Δcost below which a profile value is inside the 95 % interval.
-
-    χ²₁'s 95 % quantile, plus a one-sided 95 % allowance (1.645 standard deviations) for the
-    noise of a difference of two costs: ``noise_sd``, the analytic Monte Carlo part, or where
-    ``jitter_costs`` are given (the Δcost of points a step of 1–2 % from the optimum, where the
-    profile's smooth part is negligible), their root mean square if that is larger — the
-    measured noise of a Δcost, chaotic roughness included.
-    """
-    sd = noise_sd
-    if jitter_costs is not None and len(jitter_costs):
-        sd = max(sd, float(np.sqrt(np.mean(np.square(jitter_costs)))))
-    return CHI2_1_95 + 1.645 * sd
-
-
-def _profile_scan(problem: _Problem, z, cov, profile_costs) -> dict:
-    """Cost profiles of the free parameters over their whole range.
-
-    The Laplace interval is local and Gaussian, and rattle's cost is neither: a weak film is
-    nearly indistinguishable from dry flanks (a → 0), a long one from a saturated film, and
-    the drag torque trades against the film along a curved valley where a linear
-    extrapolation of the covariance runs off to the ends of the range. So each free parameter
-    is scanned over its whole range (:data:`SCAN_FRACTIONS`) and near the optimum
-    (:data:`SCAN_OFFSETS`). At each value the other parameters are set two ways — kept at the
-    optimum, and moved along the Laplace profile path ``z + Σ[:, i]/Σ_ii · (t − z_i)`` — and
-    the lower cost stands for the profile (:func:`_polish_profile` then re-optimises the
-    values that decide the interval's ends). Every point is simulated in one batch
-    (:class:`_ProfileCosts`, common random numbers with the optimum), so the costs are
-    comparable.
-
-    ``profile_costs`` maps points (N, P) to their costs above the optimum's (N,). Returns
-    ``{index: {t: (Δcost, z)}}``: for each free parameter and scanned value t (in z), the cost
-    above the optimum's and the point that attained it.
-    """
-    zs, owners = [], []
-    for i, spec in enumerate(problem.specs):
-        if spec.log_sd is not None:
-            continue
-        sd = math.sqrt(max(cov[i, i], 0.0))
-        ts = {spec.z_of(spec.lower * (spec.upper / spec.lower) ** f) for f in SCAN_FRACTIONS}
-        ts |= {z[i] + o * sd for o in SCAN_OFFSETS if sd < Z_END}
-        for t in sorted(float(np.clip(t, -Z_END, Z_END)) for t in ts):
-            guesses = _profile_guesses(z, cov, i, t)
-            zs += guesses
-            owners += [(i, t)] * len(guesses)
-    if not owners:
-        return {}
-    zs = np.stack(zs)
-    profiles: dict[int, dict[float, tuple]] = {}
-    for (i, t), dc, zk in zip(owners, profile_costs(zs), zs, strict=True):
-        prof = profiles.setdefault(i, {float(z[i]): (0.0, np.asarray(z, dtype=float))})
-        _keep_lower(prof, t, float(dc), zk)
-    return profiles
-
-
-class _ProfileCosts:
-    """The costs of profile points above the optimum's, simulated in two parts.
-
-    Most of a profile scan's values lie far outside the 95 % interval (Δcost in the hundreds
-    or thousands where the threshold is about 10), and the first few realisations already
-    show it. So every point is first simulated with the first ``screen`` of the covariance
-    realisations ``y0`` (R, M, 2) and costed against the optimum's same realisations; only
-    where that Δcost is below :attr:`limit` are the other M − ``screen`` simulated, and its
-    cost is then exactly that of all M at once (:meth:`_Problem.rows`: each realisation is
-    the same simulation in either part). A point set aside keeps its screened Δcost until
-    :meth:`complete_ends` finds it ending an interval's bracket: an interval end is
-    interpolated towards the first value outside, so that value must be the full cost
-    (a cost of few realisations is biased: with their own band spread from 6, a point whose
-    Δcost of 24 was 26 read 358).
-
-    The limit: :data:`SCREEN_FACTOR` × the profile ``threshold``, and at least
-    :data:`SCREEN_SDS` × :attr:`noise` above it, :attr:`noise` being the rms screened
-    Δcost of the points ``near[1:]`` near the optimum (``near[0]``; ``per_near`` their
-    features of all M realisations), whose full Δcost is within the threshold's noise of 0.
-    ``screen`` 0 (or ≥ M) simulates every point with all M (:attr:`limit` None), and so are
-    batches too small for their screening part to fill one compiled chunk (a bisection round's
-    few points, which lie near the threshold anyway).
-    """
-
-    def __init__(self, problem, y0, cost_of, per_near, near, threshold: float, screen: int):
-        self.problem, self.y0, self.cost_of = problem, y0, cost_of
-        m = y0.shape[1]
-        self.screen = screen if 0 < screen < m else 0
-        self.cost_opt = cost_of(per_near[0], near[0])
-        self.limit = self.noise = None
-        if self.screen:
-            k = self.screen
-            screened = self._costs(per_near[:, :, :k], near)
-            self.cost_opt_screen = screened[0]
-            d = screened[1:] - screened[0]
-            self.noise = float(np.sqrt(np.mean(d**2))) if len(d) else 0.0
-            self.limit = max(SCREEN_FACTOR * threshold, threshold + SCREEN_SDS * self.noise)
-        self.partial: dict[bytes, tuple] = {}  # set aside: (point, screened features)
-        self.full: dict[bytes, tuple] = {}  # completed or whole: (point, Δcost)
-        self.n_screened = self.n_set_aside = self.n_completed = 0
-
-    def __call__(self, points) -> np.ndarray:
-        points = np.atleast_2d(np.asarray(points, dtype=float))
-        if not self.screen or len(points) * self.screen < _chunk_size():
-            # a batch whose screening part would not fill one compiled chunk is simulated
-            # whole: the padding would cost as much as the realisations it saves
-            return self._full(points, _evaluate(self.problem, points, self.y0))
-        self.n_screened += len(points)
-        first = _evaluate(self.problem, points, self.y0, realisations=np.arange(self.screen))
-        dc = self._costs(first, points) - self.cost_opt_screen
-        rest = np.flatnonzero(dc <= self.limit)
-        for j in np.flatnonzero(dc > self.limit):
-            self.partial[points[j].tobytes()] = (points[j], first[j])
-        self.n_set_aside += len(points) - len(rest)
-        if len(rest):
-            dc[rest] = self._complete(points[rest], first[rest])
-        return dc
-
-    def _costs(self, per, points) -> np.ndarray:
-        return np.array([self.cost_of(f, zk) for f, zk in zip(per, points, strict=True)])
-
-    def _full(self, points, per) -> np.ndarray:
-        """Δcosts of ``points`` from the features ``per`` of all M realisations, kept for
-        :meth:`complete_ends`."""
-        dc = self._costs(per, points) - self.cost_opt
-        for zk, d in zip(points, dc, strict=True):
-            self.full[zk.tobytes()] = (zk, float(d))
-        return dc
-
-    def _complete(self, points, first) -> np.ndarray:
-        """Full Δcosts of ``points`` whose first realisations' features are ``first``."""
-        more = _evaluate(
-            self.problem, points, self.y0, realisations=np.arange(self.screen, self.y0.shape[1])
-        )
-        return self._full(points, np.concatenate([first, more], axis=2))
-
-    def complete_ends(self, profiles: dict, threshold: float) -> int:
-        """Give every profile interval's first value outside its full cost, in place.
-
-        At a value t that ends a bracket (:func:`_profile_interval`), every point set aside
-        with parameter i at t (either of the scan's guesses: the one standing may be full
-        while the other, lower in truth, read high from its few realisations) is completed,
-        and the profile takes the lowest full cost at t. If that falls inside, the next
-        value out may be another, so this repeats until none is left. Returns the number of
-        points completed.
-        """
-        n = 0
-        while True:
-            todo: dict[bytes, tuple[int, float]] = {}
-            for i, prof in profiles.items():
-                for _, t_out in _profile_interval(prof, threshold)[1]:
-                    for key, (zk, _) in self.partial.items():
-                        if zk[i] == t_out and key not in todo:
-                            todo[key] = (i, t_out)
-            if not todo:
-                break
-            keys = list(todo)
-            points = np.stack([self.partial[k][0] for k in keys])
-            first = np.stack([self.partial.pop(k)[1] for k in keys])
-            self._complete(points, first)
-            for i, t in set(todo.values()):
-                full = [(dc, zk) for zk, dc in self.full.values() if zk[i] == t]
-                standing = profiles[i][t]
-                if standing[1].tobytes() not in todo:  # a full cost (a rival, a polish)
-                    full.append(standing)
-                profiles[i][t] = min(full, key=lambda v: v[0])
-            n += len(keys)
-        self.n_completed += n
-        return n
-
-
-def _profile_guesses(z, cov, i: int, t: float, near=None) -> list[np.ndarray]:
-    """Where to put the other parameters when parameter ``i`` is held at ``t``: as at the
-    point ``near`` (default: the optimum ``z``; in a bisection, the value inside), and moved
-    from the optimum along the Laplace profile path ``z + Σ[:, i]/Σ_ii · (t − z_i)``. Where
-    the two nearly coincide (an uncorrelated parameter, or a value close to the optimum)
-    they are one point, simulated once."""
-    z = np.asarray(z, dtype=float)
-    beta = np.clip(cov[:, i] / cov[i, i], -10, 10) if cov[i, i] > 0 else np.zeros_like(z)
-    kept = (z if near is None else np.asarray(near, dtype=float)).copy()
-    kept[i] = t
-    moved = np.clip(z + beta * (t - z[i]), -Z_END, Z_END)
-    moved[i] = t
-    return [kept] if np.max(np.abs(moved - kept)) < SCAN_SAME else [kept, moved]
-
-
-def _bisect_profile_ends(
-    profiles: dict, threshold: float, z, cov, cost_of_points, *, rounds: int
-) -> int:
-    """Narrow the bracket of each profile interval's ends by bisection, in place.
-
-    The scan's values lie far apart away from the optimum (fractions of the whole range),
-    and an end interpolated linearly across such a gap can be anywhere in it: measured on a
-    joint fit of a synthetic backlash sweep (pair II, 10 % at 8 Hz), the drag torque's
-    profile was 12 below the optimum's cost at the last value inside and 1038 above it at
-    the next value scanned, 0.65 further in z (11 Laplace standard deviations), so its upper
-    end sat at the last value inside by construction, and missed the truth. Each round
-    evaluates, in one batch, the midpoint of every bracket (last value inside, first
-    outside) wider than :data:`PROFILE_RESOLUTION` of its interval (and at least
-    :data:`PROFILE_MIN_STEP` in z), with the other parameters set both ways of
-    :func:`_profile_guesses` (as at the value inside, and along the Laplace path), the lower
-    cost standing. One guess is not enough: where the valley bends (``a`` against ``h_min``
-    in mild rattle) the value inside's overstates the profile, and bisection then ends the
-    interval early (measured on the mild synthetic file of tests/test_fit.py: ``a``
-    [108, 159] µm against the true 85 µm with it alone, [80, 205] µm with both).
-
-    ``cost_of_points`` maps points (N, P) to their costs above the optimum's (N,). Returns
-    the number of points evaluated.
-    """
-    n_points = 0
-    for _ in range(rounds):
-        todo = []
-        for i, prof in profiles.items():
-            (lo, hi), brackets = _profile_interval(prof, threshold)
-            width = max(PROFILE_RESOLUTION * (hi - lo), PROFILE_MIN_STEP)
-            for t_in, t_out in brackets:
-                if abs(t_out - t_in) > width:
-                    t = 0.5 * (t_in + t_out)
-                    todo += [(i, t, g) for g in _profile_guesses(z, cov, i, t, prof[t_in][1])]
-        if not todo:
-            break
-        costs = cost_of_points(np.stack([g for _, _, g in todo]))
-        n_points += len(todo)
-        for (i, t, g), c in zip(todo, costs, strict=True):
-            _keep_lower(profiles[i], t, float(c), g)
-    return n_points
-
-
-def _continue_profiles(
-    profiles: dict,
-    threshold: float,
-    cost_of_points: Callable[[np.ndarray], np.ndarray],
-    polish: Callable[[np.ndarray, list[int]], np.ndarray],
-    step: Callable[[int, float], float],
-    *,
-    rounds: int,
-) -> int:
-    """Follow each profile past its interval's ends by continuation, in place.
-
-    For each end with a value outside (:func:`_profile_interval`'s brackets), a round tries
-    one value further out than the last value inside ``t_in``, by ``step(i, t_in)`` (in z)
-    times :data:`CONTINUATION_GROWTH` to the power of the rounds in which this end moved out
-    less those in which it did not (an end stops where the first step fails, at the range's
-    end, or after ``rounds``). The other parameters start from two predictions, as at the
-    value inside and along the secant through it and the nearest value inside at least half
-    a step further in (a predictor–corrector continuation), and are re-optimised by
-    ``polish(points, fixed)`` with parameter i held; ``cost_of_points`` maps points (N, P)
-    to their Δcost, all of a round in one batch.
-
-    The scan's straight paths leave a valley that bends (``a`` against the viscosity under
-    oil jet, where the squeeze force saturates in ``a``); a continuation follows it as far
-    as it stays below the threshold. Returns the number of points evaluated.
-    """
-    grown: dict[tuple[int, int], int] = {}
-    stopped: set[tuple[int, int]] = set()
-    n_points = 0
-    for _ in range(rounds):
-        todo = []
-        for i, prof in profiles.items():
-            for t_in, t_out in _profile_interval(prof, threshold)[1]:
-                side = 1 if t_out > t_in else -1
-                key = (i, side)
-                if key in stopped:
-                    continue
-                h = step(i, t_in) * CONTINUATION_GROWTH ** grown.get(key, 0)
-                # past a value outside if need be: its guesses may have left the valley
-                t_new = float(np.clip(t_in + side * h, -Z_END, Z_END))
-                if t_new == t_in:
-                    stopped.add(key)
-                    continue
-                z_in = np.asarray(prof[t_in][1], dtype=float)
-                inner = [
-                    t
-                    for t in sorted(prof, key=lambda t: abs(t - t_in))
-                    if (t - t_in) * side < 0 and prof[t][0] < threshold
-                ]
-                far = [t for t in inner if abs(t - t_in) >= 0.5 * h]
-                guesses = [z_in.copy()]
-                if inner:
-                    t_prev = far[0] if far else inner[-1]
-                    slope = (z_in - np.asarray(prof[t_prev][1])) / (t_in - t_prev)
-                    guesses.append(np.clip(z_in + slope * (t_new - t_in), -Z_END, Z_END))
-                for g in guesses:
-                    g[i] = t_new
-                if len(guesses) == 2 and np.max(np.abs(guesses[1] - guesses[0])) < SCAN_SAME:
-                    guesses.pop()
-                todo += [(key, t_new, g) for g in guesses]
-        if not todo:
-            break
-        ends = polish(np.stack([g for _, _, g in todo]), [key[0] for key, _, _ in todo])
-        costs = cost_of_points(ends)
-        n_points += len(todo)
-        best: dict[tuple[int, int], float] = {}
-        for (key, t_new, _), zk, dc in zip(todo, ends, costs, strict=True):
-            _keep_lower(profiles[key[0]], t_new, float(dc), zk)
-            best[key] = min(best.get(key, np.inf), float(dc))
-        for key, dc in best.items():
-            if dc < threshold:
-                grown[key] = grown.get(key, 0) + 1
-            elif grown.get(key, 0) > 0:
-                grown[key] -= 1  # too far for the predictor: a shorter step next round
-            else:
-                stopped.add(key)
-    return n_points
-
-
-def _span_profile_points(profiles: dict, threshold: float, z_lo, z_hi, specs) -> None:
-    """Widen the intervals of the parameters with a prior (``z_lo``, ``z_hi``, in place) to
-    span every profile point inside the ``threshold``: each is inside the 95 % region, so its
-    value of every parameter is inside that parameter's profile interval."""
-    inside = [zk for prof in profiles.values() for dc, zk in prof.values() if dc < threshold]
-    for j, s in enumerate(specs):
-        if s.log_sd is not None and inside:
-            values = [float(zk[j]) for zk in inside]
-            z_lo[j], z_hi[j] = min(z_lo[j], min(values)), max(z_hi[j], max(values))
-
-
-def _admit_rivals(profiles: dict, others, dcosts, threshold: float) -> list[np.ndarray]:
-    """The candidates among ``others`` whose Δcost (``dcosts``, in the profiles' cost, above
-    the optimum's) lies below the profile ``threshold``; each is entered into every free
-    parameter's profile at its own value, in place, so that the intervals, their bisection and
-    the check for a lower point (:func:`_lower_profile_point`) all see it.
-
-    A point below the threshold is inside the 95 % confidence region whatever it is: another
-    optimum, or a Levenberg–Marquardt run stopped at its step limit. One above it is not,
-    however close its cost in the fit (fewer realisations, the spread held fixed). Before
-    session 18 every candidate within √(2·n_data) of the best in the fit's cost was spanned;
-    in session 17, on a joint fit of a synthetic backlash sweep, an unconverged iterate so
-    widened ``a`` and the viscosity beyond the single recordings' intervals. On the coverage
-    study's 10 cases the two rules give the same coverage (benchmarks/README, "Rival
-    candidates").
-    """
-    rivals = []
-    for zr, dc in zip(others, dcosts, strict=True):
-        if dc < threshold:
-            rivals.append(np.asarray(zr, dtype=float))
-            for i, prof in profiles.items():
-                _keep_lower(prof, float(zr[i]), float(dc), rivals[-1])
-    return rivals
-
-
-def _lower_profile_point(profiles: dict, allowance: float):
-    """The lowest ``(Δcost, z)`` of the profiles when it lies more than ``allowance`` below
-    the optimum's cost, else None.
-
-    The optimum should be the profiles' minimum. A value clearly below it means the
-    Levenberg–Marquardt runs stopped short (at their step limit, or because the cost they
-    minimise, with fewer realisations and the spread held fixed, differs from the profiles'
-    synthetic likelihood), and intervals anchored at such an optimum are shifted. "Clearly":
-    by more than ``allowance`` (the profile threshold's Monte Carlo part), because the
-    minimum over many noisy values is biased low.
-    """
-    values = [v for prof in profiles.values() for v in prof.values()]
-    if not values:
-        return None
-    lowest = min(values, key=lambda v: v[0])
-    return lowest if lowest[0] < -allowance else None
-
-
-def _keep_lower(profile: dict, t: float, dcost: float, z) -> None:
-    """Record ``(dcost, z)`` as the profile's value at ``t`` unless a lower one stands."""
-    if t not in profile or dcost < profile[t][0]:
-        profile[t] = (dcost, z)
-
-
-def _profile_interval(profile: dict[float, tuple], threshold: float):
-    """The 95 % interval (in z) of one profile of :func:`_profile_scan`, and the brackets of
-    its ends: ``(last value inside, first value outside)`` for each end that has a value
-    outside (none where the interval runs to the last value scanned).
-
-    The interval spans every scanned value whose Δcost is below ``threshold``, its ends
-    interpolated linearly towards the first value outside.
-    """
-    ts = np.asarray(sorted(profile))
-    dc = np.asarray([profile[t][0] for t in ts])
-    inside = np.flatnonzero(dc < threshold)
-    lo_k, hi_k = inside.min(), inside.max()
-    interval = (
-        _threshold_crossing(ts, dc, lo_k, lo_k - 1, threshold),
-        _threshold_crossing(ts, dc, hi_k, hi_k + 1, threshold),
-    )
-    brackets = [
-        (float(ts[k_in]), float(ts[k_out]))
-        for k_in, k_out in ((lo_k, lo_k - 1), (hi_k, hi_k + 1))
-        if 0 <= k_out < len(ts)
-    ]
-    return interval, brackets
-
-
-def _polish_profile(
-    residuals: Callable[[np.ndarray], np.ndarray],
-    zs: np.ndarray,
-    fixed: Sequence[int | Sequence[int]],
-    steps: np.ndarray,
-    *,
-    iterations: int = 2,
-    damping: Sequence[float] = (0.03, 0.3, 3.0),
-) -> np.ndarray:
-    """Re-optimise every coordinate but ``fixed[k]`` (an index or several) from each point
-    ``zs[k]``: damped Gauss–Newton (Levenberg–Marquardt) on finite differences.
-
-    ``residuals`` maps points (N, P) to residual vectors (N, n), all evaluated in one batch
-    (common random numbers, so that the values at different points are comparable);
-    ``steps`` (K, P) are the finite-difference steps. Each iteration evaluates the forward
-    differences at every point, then one trial step per ``damping`` value λ (on the diagonal
-    of JᵀJ, Marquardt's scaling), and keeps the best trial if it lowers the cost. A profile
-    likelihood needs the other parameters at their optimum for each fixed value; the scan's
-    two guesses (unchanged, or moved along the linearised path) overstate the cost where the
-    valley bends, and that narrows the interval.
-    """
-    zs = np.array(zs, dtype=float)
-    n, p = zs.shape
-    free = [np.flatnonzero(~np.isin(np.arange(p), fixed[k])) for k in range(n)]
-    for _ in range(iterations):
-        h = np.where(zs > 0, -steps, steps)  # towards the middle of each range
-        # each point, then its forward differences along its free coordinates only
-        pts = [zs[k] + np.vstack([np.zeros(p), np.diag(h[k])[free[k]]]) for k in range(n)]
-        res = np.split(residuals(np.concatenate(pts)), np.cumsum([len(x) for x in pts])[:-1])
-        trials = []
-        for k in range(n):
-            r0, keep = res[k][0], free[k]
-            j = ((res[k][1:] - r0) / h[k][keep][:, None]).T  # (rows, free)
-            jtj, g = j.T @ j, j.T @ r0
-            for lam in damping:
-                step = np.zeros(p)
-                step[keep] = -np.linalg.solve(jtj + lam * np.diag(np.diag(jtj) + 1e-12), g)
-                trials.append(np.clip(zs[k] + step, -Z_END, Z_END))
-        cost = np.sum(residuals(np.stack(trials)) ** 2, axis=1).reshape(n, len(damping))
-        for k in range(n):
-            best = int(np.argmin(cost[k]))
-            if cost[k, best] < np.sum(res[k][0] ** 2):
-                zs[k] = trials[k * len(damping) + best]
-    return zs
-
-
-def _threshold_crossing(ts, dc, k_in: int, k_out: int, threshold: float) -> float:
-    """Where Δcost, linear between scanned values ``ts[k_in]`` (inside) and ``ts[k_out]``
-    (outside), reaches ``threshold``; ``ts[k_in]`` when there is no value outside."""
-    if k_out < 0 or k_out >= len(ts):
-        return float(ts[k_in])
-    f = (threshold - dc[k_in]) / max(dc[k_out] - dc[k_in], 1e-12)
-    return float(ts[k_in] + np.clip(f, 0.0, 1.0) * (ts[k_out] - ts[k_in]))
-
 
 #: A parameter counts as identified when its 95 % interval is two-sided, inside the range,
 #: and narrower than this factor: upper/lower ≤ 1.5, an interval of about ±20 % around its

@@ -1,7 +1,7 @@
 """Bayesian posterior of the identified parameters by affine-invariant ensemble MCMC (emcee).
 
 The target is the posterior density in the fit's unconstrained coordinates ``z``
-(:class:`~rattlefit.fit.ParameterSpec`: ``v = lower·(upper/lower)^sigmoid(z)``),
+(:class:`~rattlefit.parameters.ParameterSpec`: ``v = lower·(upper/lower)^sigmoid(z)``),
 
     log p(z | d) = −½ Σ (row_scale · W · (d − μ̄_M(z)) / σ)² + log π(v(z)) + Σ log |∂log v/∂z|,
 
@@ -42,7 +42,8 @@ import h5py
 import numpy as np
 
 from .errors import RattlefitError
-from .fit import FitOptions, FitResult, NoiseModel, ParameterSpec, _build, _evaluate, identify
+from .fit import FitOptions, FitResult, NoiseModel, _build, _evaluate, identify
+from .parameters import ParameterSpec
 from .recording import Recording
 from .reproducibility import platform_info
 
