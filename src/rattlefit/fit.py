@@ -9,7 +9,7 @@ by eye; :func:`identify` does it by least squares with optimistix's Levenberg–
   recording's backlash within its measurement uncertainty — fitted with their priors.
 
 Every parameter is bounded and fitted in an unconstrained coordinate ``z`` (logit of the log
-within its range: never clipped); parameters with a Gaussian prior on their log add a prior
+within its range: never clipped; :mod:`rattlefit.parameters`); parameters with a Gaussian prior on their log add a prior
 row to the residual, so the fit is a maximum a posteriori estimate.
 
 Rattle is chaotic, which shapes three choices:
@@ -36,9 +36,9 @@ recording the model misses does not widen what another one measures well), and m
 of noisy ensemble means, and its expected noise, estimated from the paired realisations, is
 removed from ``JᵀJ`` so that noise does not pass for information. The Laplace interval is
 local and Gaussian, so the intervals of the free parameters (``a``, ``drag_torque``) come
-from a scan of their cost profiles over the whole range (:func:`profile_scan`); at the
-scanned values that decide each interval's ends the other parameters are re-optimised
-(:func:`polish_profile`), as a profile likelihood requires. A parameter whose interval runs
+from their cost profiles over the whole range (:mod:`rattlefit.profile`: a scan, bisection
+of the ends, and at the values that decide them the other parameters re-optimised, as a
+profile likelihood requires, then followed past the ends by continuation). A parameter whose interval runs
 into its range's end is reported as *not identified*, with the one-sided bound the data do
 support (e.g. ``a ≥ …`` under oil-jet lubrication, where the squeeze force saturates once
 a ≫ √(2 R h_min); ``a ≤ …`` when dry flanks explain the data as well); one whose interval is
