@@ -9,8 +9,9 @@ by eye; :func:`identify` does it by least squares with optimistix's Levenberg–
   recording's backlash within its measurement uncertainty — fitted with their priors.
 
 Every parameter is bounded and fitted in an unconstrained coordinate ``z`` (logit of the log
-within its range: never clipped; :mod:`rattlefit.parameters`); parameters with a Gaussian prior on their log add a prior
-row to the residual, so the fit is a maximum a posteriori estimate.
+within its range: never clipped; :mod:`rattlefit.parameters`); parameters with a Gaussian
+prior on their log add a prior row to the residual, so the fit is a maximum a posteriori
+estimate.
 
 Rattle is chaotic, which shapes three choices:
 
@@ -38,12 +39,12 @@ removed from ``JᵀJ`` so that noise does not pass for information. The Laplace 
 local and Gaussian, so the intervals of the free parameters (``a``, ``drag_torque``) come
 from their cost profiles over the whole range (:mod:`rattlefit.profile`: a scan, bisection
 of the ends, and at the values that decide them the other parameters re-optimised, as a
-profile likelihood requires, then followed past the ends by continuation). A parameter whose interval runs
-into its range's end is reported as *not identified*, with the one-sided bound the data do
-support (e.g. ``a ≥ …`` under oil-jet lubrication, where the squeeze force saturates once
-a ≫ √(2 R h_min); ``a ≤ …`` when dry flanks explain the data as well); one whose interval is
-two-sided but wider than a factor :data:`IDENTIFIED_RATIO` is reported as an interval without
-an estimate.
+profile likelihood requires, then followed past the ends by continuation). A parameter
+whose interval runs into its range's end is reported as *not identified*, with the one-sided
+bound the data do support (e.g. ``a ≥ …`` under oil-jet lubrication, where the squeeze force
+saturates once a ≫ √(2 R h_min); ``a ≤ …`` when dry flanks explain the data as well); one
+whose interval is two-sided but wider than a factor :data:`IDENTIFIED_RATIO` is reported as
+an interval without an estimate.
 """
 
 from __future__ import annotations
