@@ -1146,65 +1146,46 @@ def _ensemble(problem: _Problem, z, n: int, rng) -> np.ndarray:
     return _evaluate(problem, np.asarray(z)[None], _release_states(problem, z, n, rng))[0]
 
 
-def identify(
-    recordings: Sequence[Recording],
-    options: FitOptions | None = None,
-    *,
-    progress: Callable[[str], None] | None = None,
-) -> FitResult:
-    """Identify ``a``, ``drag_torque`` and the viscosity from one or more recordings.
-
-    Several recordings of one gear pair are fitted jointly: they share ``a``,
-    ``drag_torque``, the viscosity factor, the stiffness scale and ``h_min`` (e.g. a backlash
-    sweep as in the paper's Figs. 10–12); each has its own backlash. Recordings under
-    different lubrications each get their lubrication's film half-length, ``a[boundary]``,
-    ``a[oil_jet]``, … (:func:`film_names`) and share the rest: under oil jet the squeeze
-    force saturates in ``a`` and pins the oil's viscosity, which a boundary-lubricated
-    recording alone cannot separate from ``a`` and ``h_min``.
-
-    ``progress`` receives one-line messages while the fit works.
-    """
-    options = options or FitOptions()
-    t_start = time.perf_counter()
-
-    say = stamped(progress, t_start)  # progress, stamped with the time since the start
-
-    rng = np.random.default_rng(options.seed)
-    problem, rigs = _build(recordings, options, rng)
-    specs = problem.specs
-    p = len(specs)
-    names = [s.name for s in specs]
-    say(
-        f"{len(rigs)} recording(s), {p} parameters, {options.n_realisations} realisations "
-        f"per evaluation (seed {options.seed})"
+def _band_sigma(problem: _Problem, options: FitOptions, ens) -> np.ndarray:
+    """The band spread (R, B) of one recording's features from the realisations ``ens``
+    (R, n, B) (:func:`~rattlefit.ensemble.band_sigma` with the fit's options)."""
+    return ensemble.band_sigma(
+        ens,
+        options.n_realisations,
+        options.sigma_floor,
+        np.asarray(problem.floors),
+        options.floor_uncertainty,
+        options.model_discrepancy,
+        offsets=problem.dither_offsets(ens.shape[1]),
+        threshold=problem.regime_threshold,
+        target=problem.regime_target(),
     )
 
-    z_center = _prior_centre(specs)
-    starts = _starting_points(
-        problem, options.n_starts, rng, nuisance_starts=options.nuisance_starts
-    )
-    n_starts = len(starts)
 
-    def band_sigma(ens):
-        return ensemble.band_sigma(
-            ens,
-            options.n_realisations,
-            options.sigma_floor,
-            np.asarray(problem.floors),
-            options.floor_uncertainty,
-            options.model_discrepancy,
-            offsets=problem.dither_offsets(ens.shape[1]),
-            threshold=problem.regime_threshold,
-            target=problem.regime_target(),
-        )
+@dataclasses.dataclass(frozen=True)
+class _Refined:
+    """What :func:`_refine_starts` hands to the covariance and profile stages."""
 
+    problem: _Problem  # with the band spread estimated at the best start
+    optimum: np.ndarray  # (P,) the lowest candidate
+    contenders: list  # the candidates within RIVAL_SCREEN of it, the optimum first
+    n_iter: int  # Levenberg–Marquardt steps over all starts
+    converged: bool  # every start converged before its step limit
+
+
+def _refine_starts(problem: _Problem, starts, options: FitOptions, rng, say) -> _Refined:
+    """The multi-start stage of :func:`identify`: the band spread at the prior centre, the
+    ``starts`` screened with a few realisations each, the spread re-estimated at the best and
+    the starts re-ranked, the best re-evaluated with all realisations, Levenberg–Marquardt
+    from the best ``options.n_refine``, and the candidates compared in one batch."""
+    z_center = _prior_centre(problem.specs)
     say("estimating the run-to-run spread of the features …")
     ens = _ensemble(problem, z_center, options.n_noise_realisations, rng)
-    sigma = band_sigma(ens)
+    sigma = _band_sigma(problem, options, ens)
 
     k_screen = min(options.start_realisations, options.n_realisations)
     say(
-        f"screening {n_starts} starting points with {k_screen} realisation(s) each "
+        f"screening {len(starts)} starting points with {k_screen} realisation(s) each "
         "(compiling the simulator first) …"
     )
     start_features = _evaluate(problem, starts, problem.y0[:, :k_screen])
@@ -1216,7 +1197,7 @@ def identify(
     say("re-estimating the spread at the best start …")
     best = starts[np.argmin(costs)]
     ens = _ensemble(problem, best, options.n_noise_realisations, rng)
-    sigma = band_sigma(ens)
+    sigma = _band_sigma(problem, options, ens)
     problem = eqx.tree_at(lambda q: q.sigma, problem, sigma)
     costs = _costs(problem, starts, _screen_features(problem, start_features, options.screen))
     order = np.argsort(costs)[: options.n_refine + SCREEN_EXTRA]
@@ -1255,10 +1236,57 @@ def identify(
     n_iter = sum(o[1] for o in optima)
     converged = all(o[2] for o in optima)
     # the other candidates close enough in this cost to be inside the 95 % region are tested
-    # against the profile threshold, in the profiles' own cost, once it is known (below)
+    # against the profile threshold, in the profiles' own cost, in the profile stage
     tolerance = RIVAL_SCREEN * math.sqrt(2.0 * int(np.prod(problem.data.shape)))
     # (the best among them too: after a re-centring it is another candidate)
     contenders = [candidates[i] for i in rank if final[i] - final[rank[0]] < tolerance]
+
+    return _Refined(problem, z, contenders, n_iter, converged)
+
+
+def identify(
+    recordings: Sequence[Recording],
+    options: FitOptions | None = None,
+    *,
+    progress: Callable[[str], None] | None = None,
+) -> FitResult:
+    """Identify ``a``, ``drag_torque`` and the viscosity from one or more recordings.
+
+    Several recordings of one gear pair are fitted jointly: they share ``a``,
+    ``drag_torque``, the viscosity factor, the stiffness scale and ``h_min`` (e.g. a backlash
+    sweep as in the paper's Figs. 10–12); each has its own backlash. Recordings under
+    different lubrications each get their lubrication's film half-length, ``a[boundary]``,
+    ``a[oil_jet]``, … (:func:`film_names`) and share the rest: under oil jet the squeeze
+    force saturates in ``a`` and pins the oil's viscosity, which a boundary-lubricated
+    recording alone cannot separate from ``a`` and ``h_min``.
+
+    ``progress`` receives one-line messages while the fit works.
+    """
+    options = options or FitOptions()
+    t_start = time.perf_counter()
+
+    say = stamped(progress, t_start)  # progress, stamped with the time since the start
+
+    rng = np.random.default_rng(options.seed)
+    problem, rigs = _build(recordings, options, rng)
+    specs = problem.specs
+    p = len(specs)
+    names = [s.name for s in specs]
+    say(
+        f"{len(rigs)} recording(s), {p} parameters, {options.n_realisations} realisations "
+        f"per evaluation (seed {options.seed})"
+    )
+
+    starts = _starting_points(
+        problem, options.n_starts, rng, nuisance_starts=options.nuisance_starts
+    )
+
+    def band_sigma(ens):
+        return _band_sigma(problem, options, ens)
+
+    refined = _refine_starts(problem, starts, options, rng, say)
+    problem, z, contenders = refined.problem, refined.optimum, refined.contenders
+    n_iter, converged, sigma = refined.n_iter, refined.converged, problem.sigma
 
     # the Laplace stage uses more realisations than the fit, released from fresh states
     y0_cov = _release_states(problem, z, options.n_covariance_realisations, rng)
