@@ -4,7 +4,7 @@ Every parameter :func:`~rattlefit.fit.identify` fits is a :class:`ParameterSpec`
 ``(lower, upper)`` in SI units, mapped from an unconstrained coordinate ``z`` by
 ``lower · (upper/lower)^sigmoid(z)`` (positive and bounded without clipping), with an
 optional log-normal prior. :func:`default_specs` lists them for a set of recordings: one film
-half-length per lubrication, the drag torque, the viscosity, stiffness and ``h_min`` factors,
+half-length per lubrication, the drag torque, the viscosity and stiffness factors, ``h_min``,
 and each recording's backlash within its measurement uncertainty; :func:`nuisance_prior` and
 :func:`parse_prior` replace a nuisance's prior.
 """

@@ -1,0 +1,85 @@
+"""The fitted parameters' coordinates and priors (:mod:`rattlefit.parameters`), against closed
+forms: the map from z is ``lower · (upper/lower)^sigmoid(z)``, its log-derivative
+``log(upper/lower) · s(1 − s)``, and the priors' rows are log-normal."""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from rattlefit.errors import RattlefitError
+from rattlefit.parameters import (
+    NUISANCES,
+    Z_END,
+    ParameterSpec,
+    default_specs,
+    film_names,
+    parse_prior,
+)
+
+
+def test_the_coordinate_maps_onto_the_range_and_back():
+    spec = ParameterSpec("a", "m", 1e-6, 5e-3)
+    # the closed form: z = 0 is the geometric middle of the range
+    assert spec.value(0.0) == pytest.approx(math.sqrt(1e-6 * 5e-3), rel=1e-12)
+    for v in (2e-6, 85e-6, 1e-3, 4.9e-3):
+        assert spec.value(spec.z_of(v)) == pytest.approx(v, rel=1e-10)
+    # the ends are approached, never reached or crossed (no clipping needed)
+    assert 1e-6 < spec.value(-Z_END) < 1.01e-6 and 4.95e-3 < spec.value(Z_END) < 5e-3
+    # numpy and JAX agree (the fit traces it; its host side does not)
+    zs = np.linspace(-6.0, 6.0, 7)
+    np.testing.assert_allclose(
+        np.asarray(spec.value(jnp.asarray(zs))), spec.value(zs), rtol=1e-14, atol=0
+    )
+
+
+def test_the_log_derivative_is_the_closed_form_and_jaxs():
+    spec = ParameterSpec("drag_torque", "N m", 2e-3, 0.5)
+    for z in (-3.0, -0.4, 0.0, 1.7):
+        s = 1.0 / (1.0 + math.exp(-z))
+        assert spec.dlog_dz(z) == pytest.approx(math.log(0.5 / 2e-3) * s * (1 - s), rel=1e-12)
+        auto = jax.grad(lambda t: jnp.log(spec.value(t)))(z)
+        assert float(auto) == pytest.approx(spec.dlog_dz(z), rel=1e-10)
+
+
+def test_a_spec_needs_a_positive_increasing_range():
+    for lower, upper in ((0.0, 1.0), (2.0, 1.0), (1.0, 1.0), (-1.0, 1.0)):
+        with pytest.raises(RattlefitError, match="need 0 < lower < upper"):
+            ParameterSpec("x", "1", lower, upper)
+
+
+def test_default_specs_and_film_names():
+    assert film_names(["boundary", "boundary"]) == ("a", "a")
+    assert film_names(["boundary", "oil_jet", "boundary"]) == (
+        "a[boundary]",
+        "a[oil_jet]",
+        "a[boundary]",
+    )
+    specs = default_specs([], {})
+    names = [s.name for s in specs]
+    assert names == ["a", "drag_torque", "viscosity_scale", "stiffness_scale", "min_film"]
+    # the free parameters have no prior; every nuisance has one, centred inside its range
+    assert [s.name for s in specs if s.log_sd is None] == ["a", "drag_torque"]
+    assert set(NUISANCES) == {"viscosity_scale", "stiffness_scale", "min_film"}
+    for s in specs:
+        if s.log_sd is not None:
+            assert s.lower < s.center < s.upper
+
+
+def test_a_prior_from_the_command_line():
+    name, spec = parse_prior("min_film=2e-6:0.1")
+    assert (name, spec.center, spec.log_sd, spec.unit) == ("min_film", 2e-6, 0.1, "m")
+    # the range stays the default's
+    (default,) = (s for s in default_specs([], {}) if s.name == "min_film")
+    assert (spec.lower, spec.upper) == (default.lower, default.upper)
+    for text, problem in (
+        ("min_film=2e-6", "expected NAME=CENTER:LOG_SD"),
+        ("min_film=x:0.1", "expected NAME=CENTER:LOG_SD"),
+        ("min_film=1:0.1", "outside the range"),
+        ("min_film=2e-6:-0.1", "log_sd must be a positive number"),
+        ("drag_torque=0.02:0.1", "not a nuisance parameter"),
+    ):
+        with pytest.raises(RattlefitError, match=problem):
+            parse_prior(text)
