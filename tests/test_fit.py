@@ -26,7 +26,6 @@ from rattlefit.fit import (
     _debiased_information,
     _estimate,
     _evaluate,
-    _evaluate_realisations,
     _lm_steps,
     _screen_features,
     _starting_points,
@@ -432,7 +431,7 @@ def test_profile_points_far_outside_are_set_aside_after_a_few_realisations(mild_
     points = np.stack(
         [z0, near[1], near[2], *(np.where(np.arange(len(z0)) == 0, t, z0) for t in far), z0 + 0.02]
     )
-    evaluate = functools.partial(_evaluate_realisations, problem, y0)
+    evaluate = functools.partial(_evaluate, problem, y0=y0)
     chunk = fit._chunk_size()
     whole = ProfileCosts(evaluate, cost_of, per_near, near, threshold=0.05, screen=0, chunk=chunk)
     raced = ProfileCosts(evaluate, cost_of, per_near, near, threshold=0.05, screen=4, chunk=chunk)

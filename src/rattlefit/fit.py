@@ -872,12 +872,6 @@ def _evaluate(problem: _Problem, zs, y0=None, realisations=None) -> np.ndarray:
     return out[np.argsort(order)]
 
 
-def _evaluate_realisations(problem: _Problem, y0, zs, realisations) -> np.ndarray:
-    """:func:`_evaluate` with the release states ``y0`` first: the evaluation a
-    :class:`~rattlefit.profile.ProfileCosts` is given."""
-    return _evaluate(problem, zs, y0, realisations)
-
-
 @jax.custom_jvp
 def _residual(z, problem: _Problem):
     """Whitened residual (data rows, then prior rows) at ``z``.
@@ -1395,7 +1389,7 @@ def identify(
                 f"within 1–2 % of the optimum (Monte Carlo alone: {noise_sd:.1f})"
             )
         profile_costs = ProfileCosts(
-            functools.partial(_evaluate_realisations, problem, y0_cov),
+            functools.partial(_evaluate, problem, y0=y0_cov),
             cost_of,
             per_near[: 1 + len(jitter)],
             near[: 1 + len(jitter)],

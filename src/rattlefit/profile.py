@@ -123,7 +123,7 @@ class ProfileCosts:
     realisations and costed against the optimum's same realisations; only where that Δcost
     is below :attr:`limit` are the other M − ``screen`` simulated, and its cost is then
     exactly that of all M at once (each realisation is the same simulation in either part).
-    ``evaluate(points, realisations)`` simulates the realisations (indices, None for all M)
+    ``evaluate(points, realisations=…)`` simulates the realisations (indices, None for all M)
     of each point: features (N, R, len(realisations), B); ``cost_of(features, point)`` is a
     point's cost from the features of all its realisations. A point set aside keeps its
     screened Δcost until :meth:`complete_ends` finds it ending an interval's bracket: an
@@ -173,9 +173,9 @@ class ProfileCosts:
         if not self.screen or len(points) * self.screen < self.chunk:
             # a batch whose screening part would not fill one compiled chunk is simulated
             # whole: the padding would cost as much as the realisations it saves
-            return self._full(points, self.evaluate(points, None))
+            return self._full(points, self.evaluate(points, realisations=None))
         self.n_screened += len(points)
-        first = self.evaluate(points, np.arange(self.screen))
+        first = self.evaluate(points, realisations=np.arange(self.screen))
         dc = self._costs(first, points) - self.cost_opt_screen
         rest = np.flatnonzero(dc <= self.limit)
         for j in np.flatnonzero(dc > self.limit):
@@ -198,7 +198,7 @@ class ProfileCosts:
 
     def _complete(self, points, first) -> np.ndarray:
         """Full Δcosts of ``points`` whose first realisations' features are ``first``."""
-        more = self.evaluate(points, np.arange(self.screen, self.m))
+        more = self.evaluate(points, realisations=np.arange(self.screen, self.m))
         return self._full(points, np.concatenate([first, more], axis=2))
 
     def complete_ends(self, profiles: dict, threshold: float) -> int:
