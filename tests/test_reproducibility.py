@@ -75,3 +75,22 @@ def test_too_late_a_cap_warns_and_changes_nothing(monkeypatch):
     with pytest.warns(RuntimeWarning, match="not capped"):
         assert rp.pin_cpu_isa() == "native"
     assert os.environ["XLA_FLAGS"] == "--xla_foo=1"
+
+
+def test_platform_info_names_the_cpu_model():
+    # a seeded result depends on the CPU model even under the cap (session 27: another
+    # recording on an EPYC without AVX-512), so the outputs say which CPU computed them
+    text = (
+        "processor\t: 0\nvendor_id\t: AuthenticAMD\ncpu family\t: 25\nmodel\t\t: 1\n"
+        "model name\t: AMD EPYC\nflags\t\t: fpu avx2\n\n"
+        "processor\t: 1\nvendor_id\t: GenuineIntel\ncpu family\t: 6\nmodel\t\t: 85\n"
+        "model name\t: Intel Xeon\n"
+    )
+    assert rp.cpu_model(text) == "AMD EPYC (AuthenticAMD family 25 model 1)"
+    assert rp.cpu_model("Hardware\t: BCM2835\n") == "BCM2835"  # some ARM kernels
+    info = rp.platform_info()
+    assert info["cpu"] == rp.cpu_model() and isinstance(info["cpu"], str)
+    if os.path.exists("/proc/cpuinfo"):
+        with open("/proc/cpuinfo") as f:
+            vendor = next((ln.split(":")[1].strip() for ln in f if ln.startswith("vendor_id")), "")
+        assert vendor in info["cpu"]

@@ -1,4 +1,4 @@
-"""The same seed gives the same numbers on every x86-64 CPU.
+"""The same seed gives the same numbers on the same kind of CPU, and says which that was.
 
 XLA compiles for the CPU it finds: with AVX-512 a vectorised transcendental or a fused
 multiply–add rounds differently from the same code compiled for AVX2. Rattle is chaotic, so
@@ -14,9 +14,16 @@ On import, rattlefit therefore caps XLA's CPU instruction set at :data:`DEFAULT_
 (AVX2, with FMA: every x86-64 server CPU since about 2015 has it) by adding
 ``--xla_cpu_max_isa`` to ``XLA_FLAGS``. It must do so before JAX starts its CPU backend; a
 cap the user already set in ``XLA_FLAGS`` is kept. ``RATTLEFIT_CPU_ISA`` chooses another cap,
-or ``native`` for none. Results are then reproducible for a given seed, device count and cap,
-which :func:`platform_info` reports (every fit's JSON carries it). On other architectures
-(aarch64) and on GPUs nothing is changed.
+or ``native`` for none. On other architectures (aarch64) and on GPUs nothing is changed.
+
+The cap is not the whole story: the CPU model matters too. The same code, JAX and cap gave
+``benchmarks/isa_cost.py``'s seeded recording the hash ``642db89cad49`` on an AVX-512 EPYC
+(session 14) and ``8fca3d47f972`` on an EPYC without AVX-512 (family 25, model 1; session
+27), presumably because LLVM tunes its instruction selection (which multiply–adds it fuses,
+how it orders a vectorised sum) for the CPU it finds. So results are reproducible for a
+given seed, JAX version, device count, cap and CPU model, which :func:`platform_info`
+reports (every fit's JSON carries it), and a seeded statistical test must hold with a margin
+over realisations, not at one.
 """
 
 from __future__ import annotations
@@ -78,9 +85,32 @@ def cpu_isa() -> str:
     return found.group(1) if found and platform.machine().lower() in _X86 else "native"
 
 
+def cpu_model(cpuinfo: str | None = None) -> str:
+    """The CPU's name, vendor, family and model, e.g. ``"AMD EPYC (AuthenticAMD family 25
+    model 1)"``: a seeded result depends on it (the module's docstring). From
+    ``/proc/cpuinfo`` (or the text ``cpuinfo``) where there is one, else what
+    :func:`platform.processor` says ("" if nothing)."""
+    if cpuinfo is None:
+        try:
+            with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
+                cpuinfo = f.read()
+        except OSError:
+            return platform.processor()
+    fields: dict[str, str] = {}
+    for line in cpuinfo.splitlines():
+        if not line.strip():
+            break  # the first processor's block is enough
+        key, _, value = line.partition(":")
+        fields.setdefault(key.strip(), value.strip())
+    name = fields.get("model name") or fields.get("Hardware") or platform.processor()
+    ids = [fields[k] for k in ("vendor_id",) if k in fields]
+    ids += [f"{k.split()[-1]} {fields[k]}" for k in ("cpu family", "model") if k in fields]
+    return f"{name} ({' '.join(ids)})" if ids else name
+
+
 def platform_info() -> dict:
     """What a seeded result depends on besides its inputs: JAX version, backend, device
-    count, machine architecture and the CPU instruction-set cap."""
+    count, machine architecture, the CPU instruction-set cap and the CPU model."""
     import jax
 
     return {
@@ -89,4 +119,5 @@ def platform_info() -> dict:
         "devices": len(jax.local_devices()),
         "machine": platform.machine(),
         "cpu_isa": cpu_isa(),
+        "cpu": cpu_model(),
     }
