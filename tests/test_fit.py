@@ -71,8 +71,16 @@ def test_an_oil_jet_companion_identifies_the_boundary_film(mild_recording):
     # operating point and oil (at 25 °C): one a per lubrication, the rest shared. Alone, the
     # boundary file pins only μa³/h_min² (test_mild_rattle_bounds_a: a to a factor 5–6); the
     # oil-jet file pins μ/√h_min, since its squeeze force saturates in a. Together they leave
-    # a[boundary] ∝ √h_min. The profile stage uses 12 realisations instead of 24 to keep CI
-    # short: with the defaults this test took 1170 s in CI (session 19; 1644 s in all) and
+    # a[boundary] ∝ √h_min. To keep CI short the fit departs from the defaults in three ways
+    # (measured on an EPYC without AVX-512, session 27, seed 0, one device beside another
+    # fit): 12 profile realisations instead of 24, one refined start instead of three (the
+    # three reached the same basin, costs 42.4, 48.6 and 53.2), and no profile continuation
+    # (which widens a[boundary]: [48.6, 118] µm with its 4 rounds, 1573 s in CI; [55.6, 118]
+    # with one round, 1237 s; [65.2, 102.4] without, 1151 s). So configured: 800 s,
+    # a[boundary] 81.8 µm in [69.3, 102.9] (identified), a[oil_jet] ≥ 856 µm, T_b [0.0234,
+    # 0.0266] N m, μ [0.321, 0.712] Pa s, all holding the truth. The coverage studies of
+    # benchmarks/README use the defaults. Earlier sessions, on an AVX-512 EPYC:
+    # with the defaults this test took 1170 s in CI (session 19; 1644 s in all) and
     # gave a[boundary] 81.5 µm in [63.5, 104.7] (truth 85), μ identified in [0.404, 0.600]
     # Pa s (0.494), T_b [0.0237, 0.0262] N m (0.025), a[oil_jet] ≥ 340 µm (1 mm). With 12
     # (seed 0, one device, 791 s beside another fit): a[boundary] 85.9 µm in [60.5, 103.2],
@@ -90,13 +98,15 @@ def test_an_oil_jet_companion_identifies_the_boundary_film(mild_recording):
     oil = PAPER_OIL  # synthesize's
     mu = dynamic_viscosity(25.0, oil.viscosity_40c_cst, oil.viscosity_100c_cst, oil.density_kg_m3)
     companion, _ = synthesize(g, op, rf.RattleParams(1e-3, 0.025, mu, g.backlash), seed=12)
-    result = identify([rec, companion], FitOptions(seed=0, n_covariance_realisations=12))
+    options = FitOptions(seed=0, n_covariance_realisations=12, n_refine=1, profile_continuation=0)
+    result = identify([rec, companion], options)
     truth = {**truth, "a[boundary]": truth["a"], "a[oil_jet]": 1e-3}
     del truth["a"]
     assert not _misses(result, truth), ("(lower, truth, upper):", _misses(result, truth))
     a = result.parameters["a[boundary]"]
-    # the companion narrows a[boundary] from the single fit's factor 5–12 to below 2 …
-    assert a.bound in (None, "interval") and a.upper / a.lower < 2.0, a
+    # the companion narrows a[boundary] from the single fit's factor 5–12 to below 2.5 (1.48
+    # in session 27; the margin is for other realisations: other CPUs compute other ones) …
+    assert a.bound in (None, "interval") and a.upper / a.lower < 2.5, a
     # … and issue 3: where a is reported identified (a factor ≤ 1.5), the estimate lands
     # within 20 % of the truth (session 21: 85.9 µm in [63.3, 100.3], a factor 1.58)
     if a.identified:
