@@ -100,7 +100,7 @@ def test_diagnose_names_withheld_flank_friction_and_sizes_it(tmp_path):
     reason="CI time budget (the clean-clone run reached 24 min with it): run with "
     "RATTLEFIT_SLOW=1 (passed in session 8, 172–225 s on one core, and in session 14 with "
     "the extra drag starts, 294 s beside another job). In CI the withheld-"
-    "friction test checks that the wrong effects are not supported.",
+    "friction test checks that no wrong effect removes as much misfit as the withheld one.",
 )
 def test_diagnose_supports_nothing_when_nothing_is_withheld():
     # The control: a recording of the paper's model itself (pair II, 65.0 mm, 10 % at 8 Hz,

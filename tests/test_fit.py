@@ -141,6 +141,12 @@ def test_mild_rattle_bounds_a(mild_recording):
     json.dumps(doc)  # serialisable
 
 
+@pytest.mark.skipif(
+    not os.environ.get("RATTLEFIT_SLOW"),
+    reason="CI time budget: run with RATTLEFIT_SLOW=1 (one fit; in CI through session 26, 149 s "
+    "on one core there; 308 s in CI on session 27's slower CPU, where the suite took 27 min with "
+    "it; passed there alone in 213 s)",
+)
 def test_dry_flanks_are_not_given_a_film():
     # pair I, dry (a = 0), 10 % at 8 Hz: a weak film fits about as well as none, so the fit
     # must not claim a film: its interval must reach films too short to matter, and stop short
