@@ -19,6 +19,7 @@ short of the minimum, a kink where a regime's share changes) they repeat. It pri
 Δcosts, then their mean and spread over the four sets.
 
     python benchmarks/roughness.py [--recording pairII_boundary_65.0_10pct_8Hz] [--seed 0]
+    python benchmarks/roughness.py --sweep     # the joint fit of tests/test_fit.py's sweep
 
 About 2 minutes on 2 cores (session 27, an EPYC without AVX-512, cache warm). Results are in
 benchmarks/README.md ("The roughness allowance measures structure, not noise").
@@ -66,12 +67,32 @@ def jitter_dcosts(problem, options, z, near, y0, dof_rec) -> np.ndarray:
     return costs[1:] - costs[0]
 
 
+def sweep() -> list:
+    """The two recordings of ``test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque``."""
+    from rattlefit.recording import OperatingPoint
+    from rattlefit.synthetic import synthesize
+
+    op = OperatingPoint("boundary", 20.0, 52.36, 5.236, 8.0)
+    recs = []
+    for cd, seed in ((65.0, 21), (65.4, 22)):
+        g = rattlefit.table2_pair("II", center_distance_mm=cd)
+        p = rattlefit.RattleParams(0.085e-3, 0.025, 0.4942, g.backlash)
+        recs.append(synthesize(g, op, p, seed=seed)[0])
+    return recs
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--recording", default="pairII_boundary_65.0_10pct_8Hz")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument(
+        "--sweep",
+        action="store_true",
+        help="instead, the synthetic backlash sweep of tests/test_fit.py (pair II, boundary, "
+        "10 %% at 8 Hz, 65.0 and 65.4 mm), fitted jointly",
+    )
     args = ap.parse_args()
-    rec = read_recording(RECORDINGS / f"{args.recording}.h5")
+    recs = sweep() if args.sweep else [read_recording(RECORDINGS / f"{args.recording}.h5")]
     options = F.FitOptions(seed=args.seed)
     t0 = time.perf_counter()
 
@@ -79,7 +100,7 @@ def main() -> None:
         print(f"{time.perf_counter() - t0:6.1f} s  {msg}", flush=True)
 
     rng = np.random.default_rng(options.seed)
-    problem, _ = F._build([rec], options, rng)
+    problem, _ = F._build(recs, options, rng)
     starts = F._starting_points(
         problem, options.n_starts, rng, nuisance_starts=options.nuisance_starts
     )

@@ -87,7 +87,8 @@ def test_platform_info_names_the_cpu_model():
         "model name\t: Intel Xeon\n"
     )
     assert rp.cpu_model(text) == "AMD EPYC (AuthenticAMD family 25 model 1)"
-    assert rp.cpu_model("Hardware\t: BCM2835\n") == "BCM2835"  # some ARM kernels
+    arm = "processor\t: 0\nBogoMIPS\t: 108.00\n\nprocessor\t: 1\n\nHardware\t: BCM2835\n"
+    assert rp.cpu_model(arm) == "BCM2835"  # some ARM kernels, after every processor's block
     info = rp.platform_info()
     assert info["cpu"] == rp.cpu_model() and isinstance(info["cpu"], str)
     if os.path.exists("/proc/cpuinfo"):

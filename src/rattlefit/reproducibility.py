@@ -97,11 +97,10 @@ def cpu_model(cpuinfo: str | None = None) -> str:
         except OSError:
             return platform.processor()
     fields: dict[str, str] = {}
-    for line in cpuinfo.splitlines():
-        if not line.strip():
-            break  # the first processor's block is enough
-        key, _, value = line.partition(":")
-        fields.setdefault(key.strip(), value.strip())
+    for line in cpuinfo.splitlines():  # the first processor's values; "Hardware" (some ARM
+        key, _, value = line.partition(":")  # kernels) comes after every processor's block
+        if value.strip():
+            fields.setdefault(key.strip(), value.strip())
     name = fields.get("model name") or fields.get("Hardware") or platform.processor()
     ids = [fields[k] for k in ("vendor_id",) if k in fields]
     ids += [f"{k.split()[-1]} {fields[k]}" for k in ("cpu family", "model") if k in fields]
