@@ -69,16 +69,9 @@ def jitter_dcosts(problem, options, z, near, y0, dof_rec) -> np.ndarray:
 
 def sweep() -> list:
     """The two recordings of ``test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque``."""
-    from rattlefit.recording import OperatingPoint
-    from rattlefit.synthetic import synthesize
+    from rattlefit.synthetic import backlash_sweep
 
-    op = OperatingPoint("boundary", 20.0, 52.36, 5.236, 8.0)
-    recs = []
-    for cd, seed in ((65.0, 21), (65.4, 22)):
-        g = rattlefit.table2_pair("II", center_distance_mm=cd)
-        p = rattlefit.RattleParams(0.085e-3, 0.025, 0.4942, g.backlash)
-        recs.append(synthesize(g, op, p, seed=seed)[0])
-    return recs
+    return [rec for rec, _ in backlash_sweep()]
 
 
 def main() -> None:

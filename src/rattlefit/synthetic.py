@@ -13,7 +13,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from .drive import Drive
-from .geometry import GearGeometry
+from .errors import RattlefitError
+from .geometry import GearGeometry, table2_pair
 from .model import PARAM_UNITS, Effect, RattleModel, RattleParams
 from .recording import GearPairSpec, OilSpec, OperatingPoint, Recording
 from .simulate import encoder_counts, raise_if_failed, simulate
@@ -119,3 +120,34 @@ def synthesize(
             {f"{e.name}.{k}": float(getattr(e, k)) for e in effects for k in type(e).ranges}
         )
     return rec, truth
+
+
+def backlash_sweep(
+    center_distances_mm: Sequence[float] = (65.0, 65.4),
+    seeds: Sequence[int] = (21, 22),
+    *,
+    pair: str = "II",
+    operating: OperatingPoint | None = None,
+    film_half_length: float = 0.085e-3,
+    drag_torque: float = 0.025,
+    viscosity: float = 0.4942,
+) -> list[tuple[Recording, RattleParams]]:
+    """A backlash sweep of one gear pair and one lubrication, as in the paper's Figs. 10–12:
+    one recording per centre distance (mm), each with its own ``seed``, and the parameters it
+    was simulated with (the film half-length ``a`` in m, the drag torque in N m and the
+    viscosity in Pa s shared; the backlash the centre distance's). The defaults are the sweep
+    of issue 3's joint-fit criterion: pair II in boundary lubrication at 20 °C, 10 % speed
+    fluctuation at 8 Hz."""
+    if len(center_distances_mm) != len(seeds):
+        raise RattlefitError(
+            f"backlash_sweep: {len(seeds)} seed(s) for {len(center_distances_mm)} centre "
+            "distance(s)"
+        )
+    if operating is None:
+        operating = OperatingPoint("boundary", 20.0, 52.36, 5.236, 8.0)
+    sweep = []
+    for cd, seed in zip(center_distances_mm, seeds, strict=True):
+        g = table2_pair(pair, center_distance_mm=cd)
+        p = RattleParams(film_half_length, drag_torque, viscosity, g.backlash)
+        sweep.append((synthesize(g, operating, p, seed=seed)[0], p))
+    return sweep
