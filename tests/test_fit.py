@@ -38,7 +38,7 @@ from rattlefit.profile import (
     ProfileCosts,
 )
 from rattlefit.recording import OperatingPoint, read_recording
-from rattlefit.synthetic import PAPER_OIL, synthesize
+from rattlefit.synthetic import PAPER_OIL, backlash_sweep, synthesize
 
 TARGETS = ("a", "drag_torque", "viscosity")
 
@@ -200,13 +200,9 @@ def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
     # narrows to just below the truth.
     # pair II, boundary, 10 % at 8 Hz at two centre distances: the backlash changes the
     # rattle, not a, T_b or μ, so fitting both recordings together must narrow what they share
-    op = OperatingPoint("boundary", 20.0, 52.36, 5.236, 8.0)
-    recs = []
-    for cd, seed in ((65.0, 21), (65.4, 22)):
-        g = rf.table2_pair("II", center_distance_mm=cd)
-        p = rf.RattleParams(0.085e-3, 0.025, 0.4942, g.backlash)
-        recs.append(synthesize(g, op, p, seed=seed)[0])
-    truth = _truth_of(p)
+    sweep = backlash_sweep()  # 65.0 and 65.4 mm
+    recs = [rec for rec, _ in sweep]
+    truth = _truth_of(sweep[0][1])
 
     def width(result, name):
         q = result.parameters[name]
@@ -725,6 +721,8 @@ def test_counts_of_the_profile_stage_are_checked_at_construction():
         FitOptions(nuisance_starts=-1)
     with pytest.raises(rf.RattlefitError, match="max_iterations must be ≥ 1 or None, got 0"):
         FitOptions(max_iterations=0)
+    with pytest.raises(rf.RattlefitError, match="roughness_sets must be ≥ 1, got 0"):
+        FitOptions(roughness_sets=0)
     # Levenberg–Marquardt steps: 8 per recording by default (a joint fit's iterate moves
     # longer), or what was asked for
     assert [_lm_steps(FitOptions(), n) for n in (1, 2, 3)] == [8, 16, 24]

@@ -130,6 +130,30 @@ def test_profile_threshold_covers_the_truth_of_noisy_profiles():
     assert hits["analytic"] >= 0.93 * n and hits["rough"] >= 0.98 * n, hits
 
 
+def test_profile_threshold_from_several_sets_counts_the_noise_not_the_structure():
+    # the jitter Δcosts of one fit's optimum (benchmarks/roughness.py --sweep, session 27): a
+    # wall along a and a slope along T_b that repeat in every realisation set, plus noise of
+    # sd 3 that does not. Over several sets the allowance is the noise's sd, not the
+    # structure's rms (20.8) that one set's root mean square measures.
+    structure = np.array([47.0, 10.3, -2.8, -0.5, -12.1, -2.0, 12.5, 28.8])
+    rng = np.random.default_rng(3)
+    sets = structure + rng.normal(scale=3.0, size=(200, len(structure)))
+    assert profile_threshold(1.0, sets[0]) == pytest.approx(
+        profile_threshold(float(np.sqrt(np.mean(sets[0] ** 2))))
+    )
+    assert profile_threshold(1.0, sets[:1]) == profile_threshold(1.0, sets[0])
+    sd_many = (profile_threshold(1.0, sets) - profile_threshold(0.0)) / 1.645
+    assert sd_many == pytest.approx(3.0, rel=0.05)
+    # two sets: unbiased for the variance, so over many pairs the mean square is 9
+    pairs = [
+        (profile_threshold(0.0, sets[k : k + 2]) - profile_threshold(0.0)) / 1.645
+        for k in range(0, 200, 2)
+    ]
+    assert np.mean(np.square(pairs)) == pytest.approx(9.0, rel=0.15)
+    # never below the analytic allowance
+    assert profile_threshold(5.0, sets[:2]) >= profile_threshold(5.0)
+
+
 def test_bisection_finds_the_profile_ends_a_coarse_scan_misses():
     # a profile Δ(t) = 100 (t − 0.3)² of parameter 0 of two, scanned as profile_scan does:
     # at the optimum, at ±1 and ±2 of its Laplace sd (0.05) and at coarse fractions of the

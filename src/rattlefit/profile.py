@@ -65,12 +65,24 @@ def profile_threshold(noise_sd: float, jitter_costs: np.ndarray | None = None) -
     χ²₁'s 95 % quantile, plus a one-sided 95 % allowance (1.645 standard deviations) for the
     noise of a difference of two costs: ``noise_sd``, the analytic Monte Carlo part, or where
     ``jitter_costs`` are given (the Δcost of points a step of 1–2 % from the optimum, where the
-    profile's smooth part is negligible), their root mean square if that is larger — the
-    measured noise of a Δcost, chaotic roughness included.
+    profile's smooth part is negligible) and exceed it, their measured noise:
+
+    * one row (or a 1-D array), from one set of realisations: their root mean square, which
+      counts the cost's structure near the optimum (a slope where the optimum stopped short of
+      the minimum, a kink) as noise too;
+    * several rows, each from an independent set of realisations (release states, dither and
+      encoder phases): their standard deviation over the sets, pooled over the points — the
+      noise alone, since the structure repeats from set to set (benchmarks/README, "The
+      roughness allowance measures structure, not noise").
     """
     sd = noise_sd
-    if jitter_costs is not None and len(jitter_costs):
-        sd = max(sd, float(np.sqrt(np.mean(np.square(jitter_costs)))))
+    if jitter_costs is not None and np.size(jitter_costs):
+        costs = np.atleast_2d(np.asarray(jitter_costs, dtype=float))
+        if len(costs) == 1:
+            measured = np.sqrt(np.mean(np.square(costs)))
+        else:
+            measured = np.sqrt(np.mean(np.var(costs, axis=0, ddof=1)))
+        sd = max(sd, float(measured))
     return CHI2_1_95 + 1.645 * sd
 
 
