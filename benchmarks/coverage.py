@@ -7,7 +7,7 @@ fit called `a` identified. Issue 3's check: truth inside the interval in ≥ 90 
 `a` within 20 % where reported identified.
 
     python benchmarks/coverage.py [--cases 10] [--seed 0] [--json out.json] [--only K ...]
-                                  [--rtol R] [--dither D] [--set FIELD=JSON ...]
+                                  [--rtol R] [--dither D] [--set FIELD=JSON ...] [--quiet]
                                   [--prior NAME=CENTER:LOG_SD ...] [--companion LUB]
 
 `--rtol` and `--dither` replace those `FitOptions` fields (the defaults otherwise), to measure
@@ -66,6 +66,9 @@ def main() -> None:
         choices=sorted(LUBRICATION),
         help="fit each case jointly with a recording of the same pair and operating point under "
         "this lubrication (seed: the case's + 1); cases already under it are skipped",
+    )
+    ap.add_argument(
+        "--quiet", action="store_true", help="print each case's result, not identify's progress"
     )
     ap.add_argument("--rtol", type=float, help="FitOptions.rtol (default: FitOptions')")
     ap.add_argument("--dither", type=float, help="FitOptions.dither (default: FitOptions')")
@@ -132,7 +135,13 @@ def main() -> None:
             recs.append(synthesize(g, op_c, params_c, seed=seed + 1)[0])
             film, film_c = film_names([lub, args.companion])
         t0 = time.perf_counter()
-        res = identify(recs, FitOptions(seed=seed, **overrides))
+        res = identify(
+            recs,
+            FitOptions(seed=seed, **overrides),
+            progress=None
+            if args.quiet
+            else lambda msg, n=n: print(f"  [{n + 1}] {msg}", flush=True),
+        )
         truth = {"a": a, "drag_torque": DRAG[pair], "viscosity": mu}
         row = {
             "case": f"pair {pair}, {lub}, {cd} mm, {pct} %, {f:g} Hz",
