@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 
 from rattlefit.fit import FitOptions, FitResult, ParameterEstimate
+from rattlefit.profile import profile_threshold
 from rattlefit.report import format_table
 
 
-def _result(chi2, dof, chi2_recordings=(), recordings=(), regime_share=()):
+def _result(chi2, dof, chi2_recordings=(), recordings=(), regime_share=(), profile=None):
     a = ParameterEstimate("a", "m", 8.5e-5, 6e-5, 1.1e-4, True)
     tb = ParameterEstimate("drag_torque", "N m", None, 0.0, 0.05, False, "upper")
     mu = ParameterEstimate("viscosity", "Pa s", None, 0.3, 0.6, False, "interval")
@@ -35,6 +36,7 @@ def _result(chi2, dof, chi2_recordings=(), recordings=(), regime_share=()):
         map_params=[],
         chi2_recordings=list(chi2_recordings),
         regime_share=list(regime_share),
+        profile=profile or {},
     )
 
 
@@ -83,3 +85,31 @@ def test_a_recording_in_a_minority_regime_is_named():
         _result(60.0, 57, [30.0, 30.0], ["x/a.h5", "x/b.h5"], regime_share=[1.0, 0.2])
     )
     assert "note: b.h5 is in a regime that 20%" in two and "a.h5 is in" not in two
+
+
+def _allowance(line):
+    # "… (χ²₁ 3.84 + 1.645 × X, <source>)": the sd the line says the allowance is made of
+    return float(line.split("1.645 × ")[1].split(",")[0])
+
+
+@pytest.mark.parametrize(
+    ("mc", "jitter", "source"),
+    [
+        (4.0, np.array([[1.0, -2.0, 1.5, -1.0]]), "Monte Carlo"),  # below the analytic
+        (4.0, np.array([[14.1, 10.0, -7.4, 13.7]]), "roughness"),  # one set: its rms
+        (4.9, np.array([[55.7, 10.9, -11.0, 24.5], [51.6, 17.4, -8.1, 42.7]]), "spread"),
+    ],
+)
+def test_the_table_says_what_set_the_profile_threshold(mc, jitter, source):
+    # the line must name the allowance profile_threshold used, with the sd that reproduces it
+    threshold = profile_threshold(mc, jitter)
+    profile = {"threshold": threshold, "monte_carlo_sd": mc, "realisation_sets": len(jitter)}
+    profile["roughness_rms"] = float(np.sqrt(np.mean(jitter[0] ** 2)))
+    if len(jitter) > 1:
+        profile["roughness_sd"] = float(np.sqrt(np.mean(np.var(jitter, axis=0, ddof=1))))
+    res = _result(30.0, 28, profile=profile)
+    (line,) = [x for x in format_table(res).splitlines() if x.startswith("95 % intervals")]
+    assert source in line and f"within {threshold:.1f} " in line
+    assert 3.84 + 1.645 * _allowance(line) == pytest.approx(threshold, abs=0.1)
+    assert res.to_json()["fit"]["profile"]["threshold"] == threshold
+    assert "95 % intervals" not in format_table(_result(30.0, 28))  # nothing to say

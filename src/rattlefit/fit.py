@@ -570,6 +570,13 @@ class FitResult:
     regime_share: list[float] = dataclasses.field(default_factory=list)
     #: the data rows' weighting at the optimum, shared with :func:`rattlefit.sample.sample`
     noise: NoiseModel | None = dataclasses.field(default=None, repr=False, compare=False)
+    #: what set the profile intervals' ends: ``threshold`` (the Δcost above the optimum's
+    #: that ends a profile interval, :func:`~rattlefit.profile.profile_threshold`),
+    #: ``monte_carlo_sd`` (its analytic noise allowance's sd) and, with
+    #: ``FitOptions.profile_roughness``, ``roughness_rms`` (the rms Δcost 1–2 % from the
+    #: optimum), ``realisation_sets`` and, with more than one, ``roughness_sd`` (their spread
+    #: over the sets)
+    profile: dict[str, float] = dataclasses.field(default_factory=dict)
 
     @property
     def p_value(self) -> float:
@@ -626,6 +633,7 @@ class FitResult:
                 "platform": platform_info(),  # seeded results depend on it
                 "wall_time_s": self.wall_time,
                 "recordings": self.recordings,
+                "profile": self.profile,
                 "correlation": {"names": self.names, "matrix": self.correlation.tolist()},
                 "options": dataclasses.asdict(self.options),  # priors as their specs
             },
@@ -1397,6 +1405,7 @@ def identify(
         var_cost += 2.0 * n_data / noise.sigma_dof
         noise_sd = math.sqrt(2.0 * var_cost)  # of a difference of two costs
         threshold = profile_threshold(noise_sd)
+        profile_info = {"monte_carlo_sd": noise_sd}
 
         # the optimum, the other candidates (refined optima, the best start) distinct from
         # it, and with the roughness allowance the points 1–2 % away: one batched evaluation
@@ -1430,13 +1439,16 @@ def identify(
             threshold = profile_threshold(noise_sd, jitter_costs)
             rms = np.sqrt(np.mean(jitter_costs[0] ** 2))
             spread = ""
+            profile_info.update(roughness_rms=float(rms), realisation_sets=len(jitter_costs))
             if len(jitter_costs) > 1:
                 sd_sets = np.sqrt(np.mean(np.var(jitter_costs, axis=0, ddof=1)))
                 spread = f", sd {sd_sets:.1f} over {len(jitter_costs)} realisation sets"
+                profile_info["roughness_sd"] = float(sd_sets)
             say(
                 f"  profile roughness: Δcost rms {rms:.1f}{spread} within 1–2 % of the "
                 f"optimum (Monte Carlo alone: {noise_sd:.1f}); threshold {threshold:.1f}"
             )
+        profile_info["threshold"] = float(threshold)
         profile_costs = ProfileCosts(
             functools.partial(_evaluate, problem, y0=y0_cov),
             cost_of,
@@ -1582,6 +1594,7 @@ def identify(
         chi2_recordings=[float(c) for c in chi2_rec],
         regime_share=[float(x) for x in noise.regime_share],
         noise=noise,
+        profile=profile_info,
     )
 
 

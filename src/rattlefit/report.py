@@ -14,6 +14,7 @@ import numpy as np
 from ._util import atomic_write
 from .diagnose import MISSED_Z, Diagnosis
 from .fit import IDENTIFIED_RATIO, FitResult
+from .profile import CHI2_1_95
 from .recording import Recording
 from .rig import setup
 from .sample import Posterior
@@ -58,6 +59,8 @@ def format_table(result: FitResult) -> str:
         f"χ² = {result.chi2:.1f}{per} on {result.dof} dof; {result.n_iterations} "
         f"Levenberg–Marquardt steps; seed {result.seed}; {result.wall_time:.1f} s"
     )
+    if "threshold" in result.profile:
+        lines.append(_profile_line(result.profile))
     for k, share in enumerate(result.regime_share):
         if share < 0.5:
             which = "the recording"
@@ -83,6 +86,25 @@ def format_table(result: FitResult) -> str:
             "miss; look at the spectrum plot (--plot)."
         )
     return "\n".join(lines)
+
+
+def _profile_line(profile: dict) -> str:
+    """How the 95 % intervals' profile threshold was set: χ²₁'s 3.84 plus an allowance."""
+    sd, source = profile["monte_carlo_sd"], "the Monte Carlo noise of a cost difference"
+    rough = profile.get("roughness_sd", profile.get("roughness_rms", 0.0))
+    if rough > sd:
+        sd = rough
+        if "roughness_sd" in profile:
+            source = (
+                "the cost's spread 1–2 % from the optimum over "
+                f"{profile['realisation_sets']} realisation sets"
+            )
+        else:
+            source = "the cost's roughness (rms) 1–2 % from the optimum"
+    return (
+        f"95 % intervals: where the profile cost is within {profile['threshold']:.1f} of the "
+        f"optimum's (χ²₁ {CHI2_1_95:.2f} + 1.645 × {sd:.1f}, {source})"
+    )
 
 
 def _save(fig, path: Path) -> Path:
