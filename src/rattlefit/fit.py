@@ -277,9 +277,15 @@ class FitOptions:
         minimum, a kink where the rattle regime changes) as noise; with 2 or more it is
         their standard deviation over the sets, the noise alone (:func:`profile_threshold`),
         at the price of one more batch of 1 + 4 × (free parameters) points per extra set.
-        Measured in session 27 (benchmarks/roughness.py): near the mild synthetic file's
-        optimum the Δcosts repeat over four sets (rms 10.0 of the mean, 1.9 spread), on the
-        joint backlash sweep 20.8 and 6.7.
+        Most of the set-to-set noise comes from the dither offsets: which 24 neighbouring
+        parameter values the realisations sample of a mean-feature landscape that is rough
+        at a few per cent. Measured in session 28 on the joint fit of the synthetic backlash
+        sweep (seed 0, 2 devices): over four sets (benchmarks/roughness.py --sweep) the
+        jitter Δcosts' mean has rms 14.2 (structure) and their spread 13.4 (noise); in
+        identify the allowance's sd went from 23.1 (rms) to 16.0 with 2 sets and 12.7 with
+        3, the threshold from 41.9 to 30.2 and 24.7, and the joint ``drag_torque`` interval
+        from 0.344 to 0.331 and 0.273 in log, the truth inside each. On the mild synthetic
+        file the structure dominates: 8.7 against a spread of 3.9.
     profile_screen : the profile stage simulates each value with this many of the
         ``n_covariance_realisations`` first, and the rest only where its cost is not already
         far above the profile threshold (:class:`ProfileCosts`); 0 simulates every value
