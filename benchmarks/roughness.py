@@ -11,7 +11,8 @@ realisations, as the profile stage does:
 * B: other release states;
 * C: A's release states with dither offsets and encoder count phases drawn afresh (the
   realisation settings the Levenberg–Marquardt stage shares with the profile stage; until
-  session 28 A's offsets permuted, which left their mean and so most of their effect);
+  session 28 A's offsets permuted, which kept the parameter values they sample, and so most
+  of their noise);
 * D: B's release states with C's dither and phases.
 
 If the jitter Δcosts were Monte Carlo noise they would differ from set to set by about their
@@ -108,8 +109,8 @@ def main() -> None:
     n = options.n_covariance_realisations
     y0_a = F._release_states(problem, z, n, rng)  # as identify draws them
     y0_b = F._release_states(problem, z, n, np.random.default_rng(args.seed + 12345))
-    # fresh dither offsets, not A's permuted: a permutation keeps the set of offsets, whose
-    # mean (≈ 0.1/√24 in log) shifts every point's ensemble as much as the 1–2 % jitter steps
+    # fresh dither offsets, not A's permuted: a permutation keeps the set of offsets, that is
+    # which neighbouring parameter values the realisations sample, and that is most of the noise
     reshuffled = F._redrawn(problem, options, np.random.default_rng(args.seed + 777))
     labels = [
         f"{specs.name} {h:+.2f}"

@@ -72,8 +72,9 @@ def profile_threshold(noise_sd: float, jitter_costs: np.ndarray | None = None) -
       the minimum, a kink) as noise too;
     * several rows, each from an independent set of realisations (release states, dither and
       encoder phases): their standard deviation over the sets, pooled over the points — the
-      noise alone, since the structure repeats from set to set (benchmarks/README, "The
-      roughness allowance measures structure, not noise").
+      noise, since the structure repeats from set to set. It includes the slopes that the
+      first set, on which the optimum was chosen, hides by that selection (benchmarks/README,
+      "Roughness from independent realisation sets").
     """
     sd = noise_sd
     if jitter_costs is not None and np.size(jitter_costs):
