@@ -606,6 +606,13 @@ def test_estimate_reports_bounds_and_identification():
     half = np.exp(1.96 * 0.25)
     e = _estimate(v, v.z_of(1.0), v.z_of(1 / half), v.z_of(half))
     assert (e.identified, e.bound) == (False, "prior")
+    # prior-dominated but shifted off the prior's centre (session 28's joint backlash sweep:
+    # [0.187, 0.483] Pa s about a catalogue 0.494, the truth): the prior's 95 % stays in
+    e = _estimate(v, v.z_of(0.61), v.z_of(0.378), v.z_of(0.977))
+    assert (e.identified, e.bound) == (False, "prior")
+    assert (e.lower, e.upper) == pytest.approx((0.378, half), rel=1e-4)
+    e = _estimate(v, v.z_of(1.6), v.z_of(1.0), v.z_of(2.5))  # shifted up: only its lower end
+    assert (e.lower, e.upper) == pytest.approx((1 / half, 2.5), rel=1e-4)
     e = _estimate(v, v.z_of(1.0), v.z_of(0.9), v.z_of(1.1))
     assert e.identified and e.estimate == pytest.approx(1.0)
     # … and, like any parameter, to about ±20 %: within half the prior's width, but wider
