@@ -84,6 +84,7 @@ from .profile import (
     admit_rivals,
     bisect_profile_ends,
     continue_profiles,
+    jitter_noise,
     keep_lower,
     lower_profile_point,
     polish_profile,
@@ -1446,11 +1447,11 @@ def identify(
                 c = np.array([cost_of(per[k], pts[k]) for k in range(len(pts))])
                 jitter_costs = np.concatenate([jitter_costs, (c[1:] - c[0])[None]])
             threshold = profile_threshold(noise_sd, jitter_costs)
-            rms = np.sqrt(np.mean(jitter_costs[0] ** 2))
+            rms = jitter_noise(jitter_costs[0])
             spread = ""
             profile_info.update(roughness_rms=float(rms), realisation_sets=len(jitter_costs))
             if len(jitter_costs) > 1:
-                sd_sets = np.sqrt(np.mean(np.var(jitter_costs, axis=0, ddof=1)))
+                sd_sets = jitter_noise(jitter_costs)
                 spread = f", sd {sd_sets:.1f} over {len(jitter_costs)} realisation sets"
                 profile_info["roughness_sd"] = float(sd_sets)
             say(

@@ -78,13 +78,18 @@ def profile_threshold(noise_sd: float, jitter_costs: np.ndarray | None = None) -
     """
     sd = noise_sd
     if jitter_costs is not None and np.size(jitter_costs):
-        costs = np.atleast_2d(np.asarray(jitter_costs, dtype=float))
-        if len(costs) == 1:
-            measured = np.sqrt(np.mean(np.square(costs)))
-        else:
-            measured = np.sqrt(np.mean(np.var(costs, axis=0, ddof=1)))
-        sd = max(sd, float(measured))
+        sd = max(sd, jitter_noise(jitter_costs))
     return CHI2_1_95 + 1.645 * sd
+
+
+def jitter_noise(jitter_costs) -> float:
+    """The measured noise of a Δcost from the jitter points' Δcosts (sets × points, or one
+    set as a 1-D array): one set's root mean square, or the standard deviation over several
+    sets pooled over the points (:func:`profile_threshold`)."""
+    costs = np.atleast_2d(np.asarray(jitter_costs, dtype=float))
+    if len(costs) == 1:
+        return float(np.sqrt(np.mean(np.square(costs))))
+    return float(np.sqrt(np.mean(np.var(costs, axis=0, ddof=1))))
 
 
 def profile_scan(specs: Sequence, z, cov, profile_costs) -> dict:
