@@ -208,13 +208,17 @@ def squeeze_coefficient(h, a, viscosity, radius, width):
     plates). The short-film series (8/3) y³ (1 − 9y²/5 + 18y⁴/7) is used below y = 10⁻², where
     the closed form loses digits to cancellation.
     """
-    y = a / jnp.sqrt(radius * h)
+    # one square root serves y and R^{3/2} h^{-3/2} = R³ / (R h)^{3/2}: the power h^{-1.5} (a log
+    # and an exp) made the squeeze force a fifth of a lockstep step's time (benchmarks/README,
+    # session 29)
+    root = jnp.sqrt(radius * h)
+    y = a / root
     small = y < 1e-2
     ys = jnp.where(small, 0.5, y)  # keep the unused branch finite (and its gradient)
     g_full = jnp.arctan(ys) + ys * (ys**2 - 1.0) / (1.0 + ys**2) ** 2
     g_series = (8.0 / 3.0) * y**3 * (1.0 - 1.8 * y**2 + (18.0 / 7.0) * y**4)
     g = jnp.where(small, g_series, g_full)
-    return 3.0 * viscosity * width * radius**1.5 * h**-1.5 * g
+    return 3.0 * viscosity * width * radius**3 * g / (root * root * root)
 
 
 class Effect(eqx.Module):
