@@ -857,16 +857,20 @@ def _features_chunk(problem: _Problem, rows):
 
 
 #: Rows per device of every compiled evaluation outside the Levenberg–Marquardt loop. A
-#: lockstep iteration has a fixed cost (about 20 µs of XLA's per-kernel overhead on this CPU,
-#: as much as 8 members' arithmetic), so larger batches cost less per member, but the batch
+#: lockstep iteration has a fixed cost (session 20, on an AVX-512 EPYC: about 20 µs, as much as
+#: 8 members' arithmetic; on session 29's EPYC without AVX-512 the integrator's own share is
+#: 8–11 µs at 8–24 rows), so larger batches cost less per member, but the batch
 #: waits for its slowest member, and rows of different parameter points take different step
 #: counts. 24, the realisations of one point in the covariance and profile stages, gives each
 #: device one point. Measured on the mild shared file's identify (2 devices, same features):
 #: 99 s against 110 s with 8; 32 with the remainder in chunks of 8 gained 1 s (its chunks
-#: straddle points). The trajectories do not depend on the chunking while a device gets
-#: more than one row (the features may differ in their last bit or two; tests/test_fit.py);
-#: a lone row compiles to scalar code that rounds exp and log differently, and chaos makes
-#: that a different realisation.
+#: straddle points). The trajectories do not depend on the chunking while every device gets a
+#: multiple of 4 rows (the features may differ in their last bit or two; tests/test_fit.py):
+#: XLA vectorises the step over the rows, 4 doubles a vector under the AVX2 cap, and compiles
+#: other counts to other code, which rounds differently (session 29, with the stiffness tables
+#: shared: 5 or 2 rows gave every row another trajectory; before, only a lone row did), and
+#: chaos makes that a different realisation. (The Levenberg–Marquardt loop's own program, 21
+#: rows a device on two, is another realisation anyway: its candidates are re-costed here.)
 CHUNK_ROWS = 24
 
 

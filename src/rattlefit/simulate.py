@@ -268,8 +268,10 @@ def simulate_batch(
     the slowest has finished; on a GPU ``"vmap"`` is the natural choice. ``"lockstep"``
     steps the members together with rattlefit's own Tsit5 (:mod:`rattlefit.integrate`),
     vectorised over each device's share: 2–5× faster per member than ``"map"`` on a CPU,
-    forward-mode differentiable only, and the integrator every fit uses. Outputs have shape
-    (B, N); ``time`` and ``theta1`` are shared.
+    forward-mode differentiable only, and the integrator every fit uses; a member's
+    trajectory does not depend on its batch while each device's share is a multiple of 4
+    members (other sizes compile to code that rounds differently, and chaos makes that
+    another realisation). Outputs have shape (B, N); ``time`` and ``theta1`` are shared.
     """
     if batch not in ("map", "vmap", "lockstep"):
         raise ValueError(f"batch must be 'map', 'vmap' or 'lockstep', got {batch!r}")
