@@ -866,8 +866,8 @@ def _features_chunk(problem: _Problem, rows):
 #: 99 s against 110 s with 8; 32 with the remainder in chunks of 8 gained 1 s (its chunks
 #: straddle points). The trajectories do not depend on the chunking while every device gets a
 #: multiple of 4 rows (the features may differ in their last bit or two; tests/test_fit.py):
-#: XLA vectorises the step over the rows, 4 doubles a vector under the AVX2 cap, and compiles
-#: other counts to other code, which rounds differently (session 29, with the stiffness tables
+#: presumably XLA vectorises the step over the rows, 4 doubles a vector under the AVX2 cap,
+#: and compiles other counts to other code, which rounds differently (session 29, with the tables
 #: shared: 5 or 2 rows gave every row another trajectory; before, only a lone row did), and
 #: chaos makes that a different realisation. (The Levenberg–Marquardt loop's own program, 21
 #: rows a device on two, is another realisation anyway: its candidates are re-costed here.)
