@@ -19,13 +19,10 @@ Pin it to one core (``taskset -c 0``) for steadier figures; nothing asserts a ti
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 import time
-from pathlib import Path
 
-RECORDINGS = Path(__file__).resolve().parents[2] / "shared" / "recordings"
 NAME = "pairII_boundary_65.0_10pct_8Hz"
 
 
@@ -41,19 +38,12 @@ def main(argv=None) -> int:
     import jax.numpy as jnp
     import numpy as np
 
-    from rattlefit import rig
-    from rattlefit.model import RattleParams, share_stiffness_tables
-    from rattlefit.recording import read_recording
+    from rattlefit.model import share_stiffness_tables
     from rattlefit.simulate import broadcast_params, solve_rows
+    from run import _operating_points, _truth_params  # benchmarks/run.py: the shared files
 
-    truth = json.loads((RECORDINGS / "truth.json").read_text())[NAME]
-    setup = rig.setup(read_recording(RECORDINGS / f"{NAME}.h5"))
-    params = RattleParams(
-        truth["a_mm"] * 1e-3,
-        truth["drag_torque_Nm"],
-        truth["viscosity_Pa_s"],
-        setup.geometry.backlash,
-    )
+    [(_, setup, truth)] = _operating_points([NAME])
+    params = _truth_params(setup, truth)
     opts = dict(
         n_samples=30_000,
         sample_rate=setup.sample_rate,
