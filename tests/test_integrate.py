@@ -191,3 +191,28 @@ def test_single_simulation_is_unchanged_in_statistics(pair2):
     se = np.sqrt((a.var(0) + m.var(0)) / b + 0.03**2)
     z = (a.mean(0) - m.mean(0)) / se
     assert np.sqrt(np.mean(z**2)) < 2.0, z
+
+
+def test_dense_output_is_diffraxs_tsit5_interpolation():
+    # the monomial (Horner) form of the interpolant against diffrax's factored polynomials
+    from diffrax._solver.tsit5 import _Tsit5Interpolation
+
+    from rattlefit.integrate import _dense_output
+
+    rng = np.random.default_rng(5)
+    y0 = rng.normal(size=(4, 2))
+    k = rng.normal(size=(4, 7, 2))
+    h = np.array([1e-4, 3e-3, 0.5, 2.0])
+    s = rng.uniform(0, 1, size=(4, 9))
+    got = np.asarray(
+        _dense_output(
+            jnp.asarray(y0), [jnp.asarray(h[:, None] * k[:, i]) for i in range(7)], jnp.asarray(s)
+        )
+    )
+    for b in range(4):
+        interp = _Tsit5Interpolation(
+            t0=0.0, t1=h[b], y0=jnp.asarray(y0[b]), y1=None, k=jnp.asarray(h[b] * k[b])
+        )
+        want = np.stack([np.asarray(interp.evaluate(sk * h[b])) for sk in s[b]])
+        scale = np.abs(y0[b]) + h[b] * np.abs(k[b]).sum(axis=0)
+        assert np.all(np.abs(got[b] - want) <= 1e-13 * scale), (b, got[b] - want)

@@ -29,6 +29,7 @@ from collections.abc import Callable
 import diffrax
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float, Int
 
 _TABLEAU = diffrax.Tsit5.tableau
@@ -41,20 +42,50 @@ _B_ERR = tuple(float(x) for x in _TABLEAU.b_error)
 SUCCESS, STEP_LIMIT = 0, 1
 
 
-def _dense_weights(s):
-    """Weights of the stages (times the step) in Tsit5's free interpolant at the step fraction
-    ``s``: fourth order, as diffrax's ``Tsit5`` interpolation (Tsitouras 2011), whose
-    polynomials these are. Shape ``s.shape + (7,)``."""
-    s2 = s * s
-    b1 = -1.0530884977290216 * s * (s - 1.3299890189751412)
-    b1 = b1 * (s2 - 1.4364028541716351 * s + 0.7139816917074209)
-    b2 = 0.1017 * s2 * (s2 - 2.1966568338249754 * s + 1.2949852507374631)
-    b3 = 2.490627285651252793 * s2 * (s2 - 2.38535645472061657 * s + 1.57803468208092486)
-    b4 = -16.54810288924490272 * (s - 1.21712927295533244) * (s - 0.61620406037800089) * s2
-    b5 = 47.37952196281928122 * (s - 1.203071208372362603) * (s - 0.658047292653547382) * s2
-    b6 = -34.87065786149660974 * (s - 1.2) * (s - 0.666666666666666667) * s2
-    b7 = 2.5 * (s - 1) * (s - 0.6) * s2
-    return jnp.stack([b1, b2, b3, b4, b5, b6, b7], axis=-1)
+def _dense_monomials() -> tuple[tuple[float, ...], ...]:
+    """Tsit5's free interpolant (Tsitouras 2011; the polynomials of diffrax's ``Tsit5``
+    interpolation, in their factored form) expanded in powers of the step fraction s:
+    ``b_i(s) = Σ_p M[p][i] s^(p+1)``, p = 0 … 3, i = 1 … 7 (every b_i vanishes at s = 0)."""
+    s2 = [0.0, 0.0, 1.0]
+    factored = [
+        ([-1.0530884977290216], [0.0, 1.0], [-1.3299890189751412, 1.0],
+         [0.7139816917074209, -1.4364028541716351, 1.0]),
+        ([0.1017], s2, [1.2949852507374631, -2.1966568338249754, 1.0]),
+        ([2.490627285651252793], s2, [1.57803468208092486, -2.38535645472061657, 1.0]),
+        ([-16.54810288924490272], [-1.21712927295533244, 1.0], [-0.61620406037800089, 1.0], s2),
+        ([47.37952196281928122], [-1.203071208372362603, 1.0], [-0.658047292653547382, 1.0], s2),
+        ([-34.87065786149660974], [-1.2, 1.0], [-0.666666666666666667, 1.0], s2),
+        ([2.5], [-1.0, 1.0], [-0.6, 1.0], s2),
+    ]  # fmt: skip
+    columns = []
+    for factors in factored:
+        coeffs = np.array([1.0])
+        for factor in factors:
+            coeffs = np.polynomial.polynomial.polymul(coeffs, factor)
+        columns.append(np.pad(coeffs, (0, 5 - coeffs.size))[1:])
+    return tuple(tuple(float(x) for x in row) for row in np.array(columns).T)
+
+
+_DENSE = _dense_monomials()
+
+
+def _dense_output(y, kh, s):
+    """Tsit5's fourth-order dense output ``y + Σ_i b_i(s) h k_i`` at step fractions ``s``
+    (B, S), from the step's start ``y`` (B, D) and its stages times the step ``kh`` (7 of
+    (B, D)): (B, S, D).
+
+    The stage sums are taken once a step (the coefficient of each power of s) and the
+    polynomial evaluated by Horner's rule, all elementwise: as a contraction of (B, S, 7)
+    weights with the stages (an ``einsum``), XLA on a CPU made it a batched matrix product
+    through a library call, a sixth of a lockstep step's time at 24 rows (benchmarks/README,
+    session 30).
+    """
+    powers = [_combine(row, kh)[:, None] for row in _DENSE]  # coefficients of s, …, s⁴
+    s = s[..., None]
+    acc = powers[3]
+    for c in powers[2::-1]:
+        acc = acc * s + c
+    return y[:, None] + acc * s
 
 
 def _combine(coeffs, ks):
@@ -153,8 +184,7 @@ def solve_lockstep(
         t_k = index / sample_rate
         inside = accept[:, None] & (t_k <= t1[:, None]) & (index < n_samples)
         s = jnp.clip((t_k - t[:, None]) / hc, 0.0, 1.0)
-        weights = _dense_weights(s)  # (B, S, 7)
-        y_k = y[:, None] + jnp.einsum("bsi,bid->bsd", weights, hc[:, None] * jnp.stack(ks, 1))
+        y_k = _dense_output(y, [hc * k for k in ks], s)  # (B, S, D)
         out = out.at[members, index].set(jnp.where(inside[..., None], y_k, out[members, index]))
         keep = accept[:, None]
         return (
