@@ -21,6 +21,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from ._util import concrete
+from .elementary import sin_cos_cycles
 from .errors import ParameterError
 
 
@@ -121,11 +122,13 @@ class Drive(eqx.Module):
         """θ1(t) (rad) and θ̈1(t) (rad/s²) together (scalar t), as the vector field needs them.
 
         The same series as :meth:`angle` and :meth:`acceleration`, with the harmonics'
-        cosines and sines from one cosine and sine by the angle-addition recurrence: two
-        transcendental calls per evaluation instead of one pair per harmonic and quantity.
+        cosines and sines from one cosine and sine by the angle-addition recurrence, and
+        those two from the phase f·t in cycles by :func:`~rattlefit.elementary.sin_cos_cycles`
+        (polynomials that vectorise, where ``jnp.sin`` and ``jnp.cos`` are a library call a
+        value on a CPU).
         """
         w = 2 * jnp.pi * self.frequency
-        cos1, sin1 = jnp.cos(w * t), jnp.sin(w * t)
+        sin1, cos1 = sin_cos_cycles(self.frequency * t)
         cos_k, sin_k = cos1, sin1
         angle = self.offset + self.mean_speed * t
         acc = jnp.zeros_like(angle)

@@ -44,6 +44,7 @@ from scipy import special
 
 from ._util import concrete
 from .drive import Drive
+from .elementary import arctan
 from .errors import ParameterError
 from .geometry import GearGeometry
 
@@ -215,7 +216,7 @@ def squeeze_coefficient(h, a, viscosity, radius, width):
     y = a / root
     small = y < 1e-2
     ys = jnp.where(small, 0.5, y)  # keep the unused branch finite (and its gradient)
-    g_full = jnp.arctan(ys) + ys * (ys**2 - 1.0) / (1.0 + ys**2) ** 2
+    g_full = arctan(ys) + ys * (ys**2 - 1.0) / (1.0 + ys**2) ** 2
     g_series = (8.0 / 3.0) * y**3 * (1.0 - 1.8 * y**2 + (18.0 / 7.0) * y**4)
     g = jnp.where(small, g_series, g_full)
     return 3.0 * viscosity * width * radius**3 * g / (root * root * root)
