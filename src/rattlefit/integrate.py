@@ -130,7 +130,9 @@ def solve_lockstep(
     result code per member (:data:`SUCCESS` or :data:`STEP_LIMIT`). A failed member's samples
     after the failure are zeros.
     """
-    f = jax.vmap(vector_field)
+    # one trace of the vector field serves its seven calls a step (each traced anew took a
+    # quarter of a second: tracing, not compiling, was most of the cost of a first fit)
+    f = jax.jit(jax.vmap(vector_field))
     y0 = jnp.asarray(y0, dtype=float)
     batch = y0.shape[0]
     order = 5.0  # Tsit5's error order as diffrax's PIDController counts it
