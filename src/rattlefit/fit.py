@@ -858,8 +858,9 @@ def _features_chunk(problem: _Problem, rows):
 
 #: Rows per device of every compiled evaluation outside the Levenberg–Marquardt loop. A
 #: lockstep iteration has a fixed cost (session 20, on an AVX-512 EPYC: about 20 µs, as much as
-#: 8 members' arithmetic; on session 29's EPYC without AVX-512 the integrator's own share is
-#: 8–11 µs at 8–24 rows), so larger batches cost less per member, but the batch
+#: 8 members' arithmetic; on session 29's EPYC without AVX-512 the integrator's own share was
+#: 8–11 µs at 8–24 rows, about 5 of them the dense output's einsum until session 30), so larger
+#: batches cost less per member, but the batch
 #: waits for its slowest member, and rows of different parameter points take different step
 #: counts. 24, the realisations of one point in the covariance and profile stages, gives each
 #: device one point. Measured on the mild shared file's identify (2 devices, same features):
