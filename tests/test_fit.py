@@ -145,7 +145,9 @@ def test_mild_rattle_bounds_a(mild_recording):
     not os.environ.get("RATTLEFIT_SLOW"),
     reason="CI time budget: run with RATTLEFIT_SLOW=1 (one fit; in CI through session 26, 149 s "
     "on one core there; 308 s in CI on session 27's slower CPU, where the suite took 27 min with "
-    "it; passed there alone in 213 s)",
+    "it; passed there alone in 213 s). Session 30's realisations (after that session's "
+    "simulator cuts, one device): FAILED, a [0, 271] µm, not identified: the interval reaches "
+    "no film but no longer stops short of the boundary films (benchmarks/README, session 30)",
 )
 def test_dry_flanks_are_not_given_a_film():
     # pair I, dry (a = 0), 10 % at 8 Hz: a weak film fits about as well as none, so the fit
@@ -184,7 +186,8 @@ def test_dry_flanks_are_not_given_a_film():
     "Session 28 (2 devices, an EPYC without AVX-512): joint T_b 0.34 against 1.21 and unbounded, "
     "and the joint viscosity's Laplace interval [0.187, 0.483] Pa s, which missed 0.494, now "
     "spans its prior's 95 % too: [0.187, 0.807] (re-run: all three truths inside). Session 29 "
-    "(one device, the realisations after the simulator cuts): passed with --runxfail in 1086 s",
+    "(one device, the realisations after the simulator cuts): passed with --runxfail in 1086 s; "
+    "session 30 (one device, after that session's cuts): passed again, 1257 s",
 )
 def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
     # Session 22 (seed 0, 2 devices, so other realisations than here; benchmarks/README, "The
