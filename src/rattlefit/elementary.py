@@ -25,8 +25,9 @@ from jaxtyping import Array, ArrayLike, Float
 _SIN = tuple((-1) ** k / math.factorial(2 * k + 1) for k in range(8))
 _COS = tuple((-1) ** k / math.factorial(2 * k) for k in range(9))
 
-# Cephes' atan (S. L. Moshier): a rational function of x² on |x| ≤ 0.66, after reducing x
-# by tan(π/4) or tan(π/2); relative error about 1e-16
+# Cephes' atan (S. L. Moshier): a rational function of x² on |x| ≤ 0.66, after reducing
+# x > tan(3π/8) to π/2 + atan(−1/x) and 0.66 < x ≤ tan(3π/8) to π/4 + atan((x − 1)/(x + 1));
+# relative error about 1e-16
 _ATAN_P = (
     -8.750608600031904122785e-1,
     -1.615753718733365076637e1,
