@@ -3,12 +3,9 @@ rather look than read."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 
 from ._util import atomic_write
@@ -20,6 +17,21 @@ from .rig import setup
 from .sample import Posterior
 from .simulate import simulate
 from .spectra import welch_psd
+
+
+def _pyplot():
+    """``matplotlib.pyplot``, imported on first use (0.7 s: a table or JSON output, every
+    ``rattlefit identify`` without ``--plot``, does without it). The figures are written to
+    files: the Agg backend is chosen unless pyplot is already in use (a notebook keeps its
+    own)."""
+    if "matplotlib.pyplot" not in sys.modules:
+        import matplotlib
+
+        matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
 
 #: Display units of the parameters: (SI multiplier, label).
 DISPLAY = {"m": (1e3, "mm"), "N m": (1.0, "N m"), "Pa s": (1.0, "Pa s"), "1": (1.0, "")}
@@ -112,7 +124,7 @@ def _save(fig, path: Path) -> Path:
         fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight")
 
     atomic_write(path, write)
-    plt.close(fig)
+    _pyplot().close(fig)
     return path
 
 
@@ -131,7 +143,7 @@ def plot_fit(result: FitResult, recordings: list[Recording], directory: str | Pa
             rtol=result.options.rtol,
             atol=result.options.rtol * 1e-3,
         )
-        fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 8))
+        fig, (ax1, ax2) = _pyplot().subplots(2, 1, figsize=(9, 8))
         f = rig.bands.frequencies
         measured = np.asarray(
             welch_psd(rec.relative_motion, rig.sample_rate, rig.bands.segment_length)
@@ -190,7 +202,7 @@ def plot_fit(result: FitResult, recordings: list[Recording], directory: str | Pa
         ax2.legend(fontsize=8, loc="lower right")
         out.append(_save(fig, directory / f"fit_{k}_{Path(rec.path or 'recording').stem}.png"))
     names = result.names
-    fig, ax = plt.subplots(figsize=(1.0 + 0.6 * len(names), 0.8 + 0.6 * len(names)))
+    fig, ax = _pyplot().subplots(figsize=(1.0 + 0.6 * len(names), 0.8 + 0.6 * len(names)))
     im = ax.imshow(result.correlation, vmin=-1, vmax=1, cmap="RdBu_r")
     ax.set_xticks(range(len(names)), names, rotation=45, ha="right")
     ax.set_yticks(range(len(names)), names)
@@ -245,7 +257,7 @@ def plot_posterior(
     directory = Path(directory)
     names, p = post.names, len(post.names)
     scale = [DISPLAY.get(u, (1.0, u)) for u in post.units]
-    fig, axes = plt.subplots(p, 1, figsize=(9, 1.6 * p), sharex=True, squeeze=False)
+    fig, axes = _pyplot().subplots(p, 1, figsize=(9, 1.6 * p), sharex=True, squeeze=False)
     for i, ax in enumerate(axes[:, 0]):
         ax.plot(post.chain[:, :, i] * scale[i][0], color="k", lw=0.4, alpha=0.35)
         ax.axvspan(0, post.burn_in, color="0.85", lw=0)
@@ -253,7 +265,7 @@ def plot_posterior(
     axes[-1, 0].set_xlabel("step (shaded: burn-in, discarded)")
     out = [_save(fig, directory / "posterior_trace.png")]
     kept = post.kept * np.array([m for m, _ in scale])
-    fig, axes = plt.subplots(p, p, figsize=(1.9 * p, 1.9 * p), squeeze=False)
+    fig, axes = _pyplot().subplots(p, p, figsize=(1.9 * p, 1.9 * p), squeeze=False)
     for i in range(p):
         for j in range(p):
             ax = axes[i, j]
@@ -280,7 +292,7 @@ def plot_posterior(
     if recordings:
         draws, data, centres = post.predictive_features(recordings)
         for k, rec in enumerate(recordings):
-            fig, ax = plt.subplots(figsize=(9, 4.5))
+            fig, ax = _pyplot().subplots(figsize=(9, 4.5))
             for i, d in enumerate(draws[:, k]):
                 label = "mean of the realisations at posterior draws" if i == 0 else None
                 ax.loglog(centres, 10**d, color="C0", lw=0.8, alpha=0.5, label=label)
@@ -355,7 +367,7 @@ def plot_diagnosis(diag: Diagnosis, directory: str | Path, *, top: int = 3) -> l
     the ``top`` effects that remove most misfit, over the χ² of every effect tried."""
     directory = Path(directory)
     n_rec = diag.residuals.shape[0]
-    fig, axes = plt.subplots(n_rec + 1, 1, figsize=(9, 3.2 * (n_rec + 1)), squeeze=False)
+    fig, axes = _pyplot().subplots(n_rec + 1, 1, figsize=(9, 3.2 * (n_rec + 1)), squeeze=False)
     centres = diag.band_centers
     for k in range(n_rec):
         ax = axes[k, 0]
