@@ -12,6 +12,7 @@ import os
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import optimistix as optx
 import pytest
 
 import rattlefit as rf
@@ -19,6 +20,7 @@ from rattlefit.ensemble import band_sigma as _band_sigma
 from rattlefit.ensemble import chaotic_part as _chaotic_part
 from rattlefit.ensemble import shrunk_correlation
 from rattlefit.fit import (
+    LM_REJECTIONS,
     START_POINTS,
     START_RANGES,
     FitOptions,
@@ -28,6 +30,7 @@ from rattlefit.fit import (
     _evaluate,
     _lm_steps,
     _screen_features,
+    _StallingLevenbergMarquardt,
     _starting_points,
     identify,
 )
@@ -644,6 +647,33 @@ def test_an_identified_estimate_lands_within_20_percent_as_often_as_the_interval
     # and the factor 2 used before would not do
     est2 = np.exp(rng.normal(scale=np.log(2.0) / (2 * 1.96), size=200_000))
     assert np.mean(np.abs(est2 - 1) <= 0.2) < 0.8
+
+
+def test_levenberg_marquardt_stops_once_its_trial_steps_keep_being_rejected():
+    # r(y) = y − 1 off the start, 10 higher everywhere but at it (a point that a chaotic
+    # cost's noise favoured): every trial step is rejected however far the trust region
+    # shrinks. optimistix's own solver spends every step to its limit; the fit's stops after
+    # LM_REJECTIONS of them, at the start, and says it stalled
+    y0 = jnp.zeros(2)
+
+    def residual(y, _):
+        return y - 1.0 + jnp.where(jnp.all(y == y0), 0.0, 10.0)
+
+    def solve(solver):
+        return optx.least_squares(residual, solver, y0, max_steps=12, throw=False)
+
+    plain = solve(optx.LevenbergMarquardt(rtol=1e-2, atol=1e-2))
+    assert int(plain.stats["num_steps"]) == 12 and plain.result != optx.RESULTS.successful
+    sol = solve(_StallingLevenbergMarquardt(rtol=1e-2, atol=1e-2))
+    assert int(sol.stats["num_steps"]) == 1 + LM_REJECTIONS  # the start, then the rejections
+    assert sol.result == optx.RESULTS.successful and _StallingLevenbergMarquardt.stalled(sol.state)
+    np.testing.assert_array_equal(sol.value, y0)
+    # and on a smooth problem it converges as optimistix's does
+    smooth = optx.least_squares(
+        lambda y, _: y - 1.0, _StallingLevenbergMarquardt(rtol=1e-6, atol=1e-6), y0, max_steps=50
+    )
+    np.testing.assert_allclose(smooth.value, 1.0, atol=1e-6)
+    assert not _StallingLevenbergMarquardt.stalled(smooth.state)
 
 
 def test_debiased_information_removes_the_jacobian_noise():
