@@ -1244,7 +1244,8 @@ class _Refined:
     optimum: np.ndarray  # (P,) the lowest candidate
     contenders: list  # the candidates within RIVAL_SCREEN of it, the optimum first
     n_iter: int  # Levenberg–Marquardt steps over all starts
-    converged: bool  # every start converged before its step limit
+    converged: bool  # every start converged (or stalled) before its step limit
+    stalled: tuple[bool, ...]  # each run: stalled (:class:`_StallingLevenbergMarquardt`)
 
 
 def _refine_starts(problem: _Problem, starts, options: FitOptions, rng, say) -> _Refined:
@@ -1305,7 +1306,7 @@ def _refine_starts(problem: _Problem, starts, options: FitOptions, rng, say) -> 
         else:
             how = "converged"
         say(f"  → {steps} steps ({how})")
-        optima.append((z, steps, bool(ok)))
+        optima.append((z, steps, bool(ok), how.startswith("stalled")))
     # Costs from differently compiled programs are different chaotic realisations, so the
     # candidates (optima and the best start) are compared in one batched evaluation.
     candidates = np.stack([o[0] for o in optima] + [starts[order[0]]])
@@ -1321,7 +1322,7 @@ def _refine_starts(problem: _Problem, starts, options: FitOptions, rng, say) -> 
     # (the best among them too: after a re-centring it is another candidate)
     contenders = [candidates[i] for i in rank if final[i] - final[rank[0]] < tolerance]
 
-    return _Refined(problem, z, contenders, n_iter, converged)
+    return _Refined(problem, z, contenders, n_iter, converged, tuple(o[3] for o in optima))
 
 
 def identify(
@@ -1613,6 +1614,12 @@ def identify(
         success=converged,
         message=(
             ("converged" if converged else "step limit reached")
+            + (
+                f" ({sum(refined.stalled)} of {len(refined.stalled)} Levenberg–Marquardt runs "
+                f"stalled at the cost's noise: {LM_REJECTIONS} rejected steps in a row)"
+                if any(refined.stalled)
+                else ""
+            )
             + (
                 f"; re-centred {recentred}× on the profiles' minimum"
                 if recentred
