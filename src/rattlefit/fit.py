@@ -1303,15 +1303,16 @@ def _refine_starts(problem: _Problem, starts, options: FitOptions, rng, say) -> 
         )
         z = np.asarray(sol.value)
         steps = int(sol.stats["num_steps"])
-        ok = sol.result == optx.RESULTS.successful
+        ok = bool(sol.result == optx.RESULTS.successful)
+        stalled = ok and bool(_StallingLevenbergMarquardt.stalled(sol.state))
         if not ok:
             how = "stopped at the step limit"
-        elif _StallingLevenbergMarquardt.stalled(sol.state):
+        elif stalled:
             how = f"stalled: {LM_REJECTIONS} trial steps in a row rejected"
         else:
             how = "converged"
         say(f"  → {steps} steps ({how})")
-        optima.append((z, steps, bool(ok), how.startswith("stalled")))
+        optima.append((z, steps, ok, stalled))
     # Costs from differently compiled programs are different chaotic realisations, so the
     # candidates (optima and the best start) are compared in one batched evaluation.
     candidates = np.stack([o[0] for o in optima] + [starts[order[0]]])
