@@ -194,7 +194,8 @@ def test_dry_flanks_are_not_given_a_film():
     "and the joint viscosity's Laplace interval [0.187, 0.483] Pa s, which missed 0.494, now "
     "spans its prior's 95 % too: [0.187, 0.807] (re-run: all three truths inside). Session 29 "
     "(one device, the realisations after the simulator cuts): passed with --runxfail in 1086 s; "
-    "session 30 (one device, after that session's cuts): passed again, 1257 s",
+    "session 30 (one device, after that session's cuts): passed again, 1257 s; session 31 "
+    "(Levenberg–Marquardt runs stop when they stall): passed, 727 s",
 )
 def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
     # Session 22 (seed 0, 2 devices, so other realisations than here; benchmarks/README, "The
