@@ -181,7 +181,7 @@ class FitOptions:
         Measured with 2 (session 31, seed 0, 2 devices): the coverage study held 29/30 in 640 s
         against 763 s, but the mild shared file's optimum came from its third start (cost 225
         before refinement, 12.5 after, against 13.1 from the best start), and without it that
-        fit took longer (18 continuation points against 8) with `a` [28, 309] µm against
+        fit took longer (18 continuation points against 8) with ``a`` [28, 309] µm against
         [65, 381]. A run stops early once it stalls (:class:`_StallingLevenbergMarquardt`).
     max_iterations : Levenberg–Marquardt steps per start; None (the default) gives
         :data:`LM_STEPS` per recording. Each recording adds its own rugged cost, and a joint
