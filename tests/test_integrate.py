@@ -78,6 +78,27 @@ def test_tighter_tolerance_takes_fifth_order_more_steps():
         assert 1.8 < fine / coarse < 3.5, steps
 
 
+def test_absolute_tolerance_may_differ_between_state_components():
+    # x = cos ωt: the velocity is ω = 314 times the position, so the same absolute tolerance on
+    # both holds the velocity 314 times tighter relative to its size. A pair (a, a) is the
+    # scalar a exactly; loosening the velocity's alone takes fewer steps than holding both and
+    # more than loosening both, and the position's error stays that of its own tolerance's order
+    omega = jnp.asarray([2 * np.pi * 50.0])
+    y0 = jnp.asarray([[1.0, 0.0]])
+    t = np.arange(3000) / FS + 0.05
+    kw = dict(t0=-0.05, n_samples=3000, sample_rate=FS, rtol=1e-14)
+    out = {}
+    for atol in (1e-8, (1e-8, 1e-8), (1e-8, 314e-8), (314e-8, 314e-8)):
+        ys, n, result = solve_lockstep(_oscillator, y0, omega, atol=atol, **kw)
+        assert int(result[0]) == SUCCESS
+        err = np.max(np.abs(np.asarray(ys[0, :, 0]) - np.cos(2 * np.pi * 50.0 * t)))
+        out[atol] = (np.asarray(ys), int(n[0]), err)
+    np.testing.assert_array_equal(out[1e-8][0], out[(1e-8, 1e-8)][0])
+    tight, mixed, loose = (out[k] for k in ((1e-8, 1e-8), (1e-8, 314e-8), (314e-8, 314e-8)))
+    assert tight[1] > mixed[1] > loose[1], (tight[1], mixed[1], loose[1])
+    assert tight[2] < mixed[2] < loose[2], (tight[2], mixed[2], loose[2])
+
+
 def test_members_do_not_depend_on_their_batch():
     omega = jnp.asarray([2 * np.pi * 3.0, 2 * np.pi * 700.0, 2 * np.pi * 40.0])
     y0 = jnp.asarray([[1.0, 0.0], [0.0, -3.0], [0.5, 20.0]])

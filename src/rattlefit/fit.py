@@ -96,7 +96,12 @@ from .profile import (
 from .recording import Recording
 from .reproducibility import platform_info
 from .rig import RigSetup, setup
-from .simulate import _static_options, quantised_relative_motion, solve_rows
+from .simulate import (
+    _static_options,
+    absolute_tolerances,
+    quantised_relative_motion,
+    solve_rows,
+)
 from .spectra import spectral_features
 
 #: χ² p-value below which a fit is flagged as poor (:attr:`FitResult.poor_fit`).
@@ -314,7 +319,8 @@ class FitOptions:
         cost fits the recording's realisation, not the truth. Where it triggers it costs a
         second Laplace and profile stage (about 40 % of a fit).
     seed : seeds the release positions and the starts (reported in the result).
-    rtol : simulator tolerance (atol is 1e-3 of it, in m and m/s). 1e-4 matches the band
+    rtol : simulator tolerance (the absolute ones are ``rtol`` times 1 mm for q and 30 mm/s for
+        v: :func:`rattlefit.simulate.absolute_tolerances`). 1e-4 matches the band
         features of the sharp scipy reference at six of the seven shared operating points
         (benchmarks/README) for 0.65× the steps, but measured in session 11 it moved two
         seeded CI checks off their truth (the mild synthetic file's ``a`` lower end 90 µm
@@ -1073,7 +1079,7 @@ def _build(
                 first.sample_rate,
                 options.burn_in,
                 options.rtol,
-                options.rtol * 1e-3,
+                absolute_tolerances(options.rtol),
                 200_000,
                 "forward",
             ).items()

@@ -101,7 +101,7 @@ def solve_lockstep(
     n_samples: int,
     sample_rate: float,
     rtol: float,
-    atol: float,
+    atol: float | tuple[float, ...],
     dt0: float = 1e-5,
     max_steps: int = 200_000,
     pcoeff: float = 0.3,
@@ -118,7 +118,8 @@ def solve_lockstep(
         ``args[b]``).
     t0 : start time, s (≤ 0; the first sample is at t = 0).
     n_samples : samples per member, at ``k / sample_rate``, k < n_samples.
-    rtol, atol : tolerances of the PI step-size controller.
+    rtol, atol : tolerances of the PI step-size controller. ``atol`` is one number for every
+        state component or one per component (D of them), in that component's units.
     dt0 : first step tried, s.
     max_steps : attempted steps per member; a member that has not reached the last sample
         by then (or whose state became non-finite, which rejects every step) fails.
@@ -135,6 +136,7 @@ def solve_lockstep(
     f = jax.jit(jax.vmap(vector_field))
     y0 = jnp.asarray(y0, dtype=float)
     batch = y0.shape[0]
+    atol_d = jnp.broadcast_to(jnp.asarray(atol, dtype=float), y0.shape[1:])
     order = 5.0  # Tsit5's error order as diffrax's PIDController counts it
     c_now, c_prev = (pcoeff + icoeff) / order, -pcoeff / order
     dt_max = samples_per_step / sample_rate
@@ -173,7 +175,7 @@ def solve_lockstep(
         k7 = f(t + h, y1, args)
         ks.append(k7)
         err = hc * _combine(_B_ERR, ks)
-        scale = atol + rtol * jnp.maximum(jnp.abs(y), jnp.abs(y1))
+        scale = atol_d + rtol * jnp.maximum(jnp.abs(y), jnp.abs(y1))
         e = jnp.sqrt(jnp.mean((err / scale) ** 2, axis=-1))
         e = jnp.where(jnp.isfinite(e) & jnp.all(jnp.isfinite(y1), axis=-1), e, 1e10)
         accept = active & (e < 1.0)

@@ -15,7 +15,7 @@ from .profile import CHI2_1_95
 from .recording import Recording
 from .rig import setup
 from .sample import Posterior
-from .simulate import simulate
+from .simulate import absolute_tolerances, simulate
 from .spectra import welch_psd
 
 
@@ -141,7 +141,7 @@ def plot_fit(result: FitResult, recordings: list[Recording], directory: str | Pa
             duration=rec.duration,
             sample_rate=rec.sample_rate_hz,
             rtol=result.options.rtol,
-            atol=result.options.rtol * 1e-3,
+            atol=absolute_tolerances(result.options.rtol),
         )
         fig, (ax1, ax2) = _pyplot().subplots(2, 1, figsize=(9, 8))
         f = rig.bands.frequencies
