@@ -881,8 +881,11 @@ def _features_chunk(problem: _Problem, rows):
 #: presumably XLA vectorises the step over the rows, 4 doubles a vector under the AVX2 cap,
 #: and compiles other counts to other code, which rounds differently (session 29, with the tables
 #: shared: 5 or 2 rows gave every row another trajectory; before, only a lone row did), and
-#: chaos makes that a different realisation. (The Levenberg–Marquardt loop's own program, 21
-#: rows a device on two, is another realisation anyway: its candidates are re-costed here.)
+#: chaos makes that a different realisation. Not every multiple of 4 compiles alike either
+#: (session 32, the mild shared file's prior centre on this machine's EPYC without AVX-512):
+#: 4, 8 and 12 rows a device gave one realisation, 16, 20, 24 and 32 another (features up to
+#: 0.026 apart). (The Levenberg–Marquardt loop's own program, 21 rows a device on two, is
+#: another realisation anyway: its candidates are re-costed here.)
 CHUNK_ROWS = 24
 
 

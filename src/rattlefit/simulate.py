@@ -237,12 +237,13 @@ def simulate(
 #: ``rtol`` times these (:func:`absolute_tolerances`). 1 mm is a few backlashes; 30 mm/s is the
 #: rattle's impact velocity (the median |v| of a mild-rattle step is 15–20 mm/s). Until session
 #: 32 both were 1e-3, so that v was held to 10 nm/s absolute: resting on a flank (v about
-#: 0.1 mm/s) the controller resolved velocity fluctuations that move no feature. Measured
-#: against the tight lockstep reference (rtol 1e-7; 48 realisations at the truth of three
-#: shared files, the rms of the band-mean differences in units of their standard error with
-#: the fit's floor): the mild file 0.07 before and after, with 23 % fewer steps; the pair I oil-jet
-#: file 0.02 → 0.04, 19 % fewer; the dry file (chaotic) 0.74 → 0.51, as many. 100 mm/s saved
-#: 31 % but moved the mild file's bands to 0.46 (rtol 1e-4: 1.04); benchmarks/README, session 32.
+#: 0.1 mm/s) the controller resolved velocity fluctuations that move no feature.
+#: ``benchmarks/state_tolerance.py`` (48 realisations at the truth of three shared files against
+#: a tight lockstep reference; band-mean differences in standard errors with the fit's floor,
+#: about 1 between independent chaotic ensembles): the mild file rms z 0.05 → 0.06 with 0.77×
+#: the steps, the pair I oil-jet file 0.01 → 0.02 with 0.82×, the dry file (chaotic) 0.74 →
+#: 1.05 with as many steps on average. 100 mm/s saved more (0.69×) but moved the mild file's
+#: bands to 0.29, and rtol 1e-4 to 0.74 (benchmarks/README, session 32).
 STATE_SCALES = (1e-3, 3e-2)
 
 
