@@ -141,7 +141,9 @@ def plot_fit(result: FitResult, recordings: list[Recording], directory: str | Pa
             duration=rec.duration,
             sample_rate=rec.sample_rate_hz,
             rtol=result.options.rtol,
-            atol=absolute_tolerances(result.options.rtol),
+            atol=absolute_tolerances(
+                result.options.rtol, [r.operating.lubrication for r in recordings]
+            ),
         )
         fig, (ax1, ax2) = _pyplot().subplots(2, 1, figsize=(9, 8))
         f = rig.bands.frequencies
