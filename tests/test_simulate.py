@@ -172,6 +172,23 @@ def test_failure_is_reported_not_nan(pair2):
         raise_if_failed(sol)
 
 
+def test_absolute_tolerance_per_state_component(pair2):
+    # through diffrax: a pair (a, a) is the scalar a; the velocity's own, looser tolerance
+    # (the fit's rtol × 30 mm/s against rtol × 1 mm/s) takes fewer steps; anything but one or
+    # two numbers is refused
+    model = rf.RattleModel.from_geometry(pair2)
+    drive = rf.Drive.commanded(52.36, 5.236, 8.0)
+    p = rf.RattleParams(0.085e-3, 0.025, 0.49, pair2.backlash)
+    kw = dict(duration=0.1, burn_in=0.1, rtol=1e-5)
+    one = rf.simulate(model, p, drive, atol=1e-8, **kw)
+    pair = rf.simulate(model, p, drive, atol=(1e-8, 1e-8), **kw)
+    np.testing.assert_array_equal(np.asarray(one.q), np.asarray(pair.q))
+    loose = rf.simulate(model, p, drive, atol=(1e-8, 3e-7), **kw)
+    assert bool(loose.success) and int(loose.num_steps) < int(one.num_steps)
+    with pytest.raises(ValueError, match="atol"):
+        rf.simulate(model, p, drive, atol=(1e-8, 1e-8, 1e-8), **kw)
+
+
 def test_invalid_parameters_refused():
     with pytest.raises(rf.ParameterError, match="viscosity"):
         rf.RattleParams(1e-4, 0.02, -0.5, 1e-3)
