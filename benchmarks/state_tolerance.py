@@ -30,7 +30,6 @@ NAMES = (
     "pairII_dry_65.6_20pct_16Hz",  # dry: chaotic, hard impacts
     "pairI_oiljet_65.4_20pct_8Hz",
 )
-Q_SCALE = 1e-3  # m
 SIGMA_FLOOR = 0.03  # FitOptions.sigma_floor: the smallest band spread the fit resolves
 
 
@@ -52,15 +51,21 @@ def main(argv=None) -> int:
     import jax.numpy as jnp
     import numpy as np
 
-    from rattlefit.simulate import broadcast_params, simulate_batch
+    from rattlefit.simulate import (
+        DRY_STATE_SCALES,
+        STATE_SCALES,
+        broadcast_params,
+        simulate_batch,
+    )
     from rattlefit.spectra import spectral_features
     from run import _operating_points, _truth_params  # benchmarks/run.py: the shared files
 
     m = args.realisations
     print(f"seed {args.seed}, {m} realisations, fit rtol {args.rtol}", flush=True)
-    settings = [("reference", 1e-7, Q_SCALE)]
+    q_scale, v_old = STATE_SCALES[0], DRY_STATE_SCALES[1]  # m; m/s, the scale before session 32
+    settings = [("reference", 1e-7, v_old)]
     settings += [(f"v {s * 1e3:g} mm/s", args.rtol, s) for s in args.scales]
-    settings += [(f"rtol {r:g}, v 1 mm/s", r, Q_SCALE) for r in args.rtol_loose]
+    settings += [(f"rtol {r:g}, v 1 mm/s", r, v_old) for r in args.rtol_loose]
     for name, rig, truth in _operating_points(args.names):
         params = broadcast_params(_truth_params(rig, truth), m)
         c = rig.geometry.backlash / 2
@@ -76,7 +81,7 @@ def main(argv=None) -> int:
                 y0=y0,
                 batch="lockstep",
                 rtol=rtol,
-                atol=(rtol * Q_SCALE, rtol * v_scale),
+                atol=(rtol * q_scale, rtol * v_scale),
                 duration=3.0,
                 burn_in=0.5,
             )
