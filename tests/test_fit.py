@@ -10,6 +10,7 @@ import math
 import os
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
@@ -28,6 +29,7 @@ from rattlefit.fit import (
     _debiased_information,
     _estimate,
     _evaluate,
+    _levenberg_marquardt,
     _lm_steps,
     _screen_features,
     _StallingLevenbergMarquardt,
@@ -670,6 +672,46 @@ def test_levenberg_marquardt_stops_once_its_trial_steps_keep_being_rejected():
     )
     np.testing.assert_allclose(smooth.value, 1.0, atol=1e-6)
     assert not _StallingLevenbergMarquardt.stalled(smooth.state)
+
+
+def test_levenberg_marquardt_stepped_from_python_takes_optimistix_own_steps():
+    # the fit steps optimistix's solver from Python, simulating the residual and Jacobian
+    # between steps; on closed-form residuals its iterates, step counts and results must be
+    # optimistix.least_squares's own: Rosenbrock's valley (converged, and cut at a step
+    # limit), and the residual whose every trial step is rejected (stalled)
+    y0 = jnp.array([-1.2, 1.0])
+
+    def rosenbrock(y, _=None):
+        return jnp.stack([10.0 * (y[1] - y[0] ** 2), 1.0 - y[0]])
+
+    def spiky(y, _=None):
+        return y - 1.0 + jnp.where(jnp.all(y == y0), 0.0, 10.0)
+
+    for residual, max_steps in ((rosenbrock, 100), (rosenbrock, 5), (spiky, 12)):
+        solver = _StallingLevenbergMarquardt(rtol=1e-8, atol=1e-8)
+        ref = optx.least_squares(residual, solver, y0, max_steps=max_steps, throw=False)
+
+        def jacobian_at(z, residual=residual):
+            z = jnp.asarray(z)
+            return np.asarray(residual(z)), np.asarray(jax.jacfwd(residual)(z))
+
+        z, steps, result, state = _levenberg_marquardt(jacobian_at, solver, y0, max_steps)
+        assert steps == int(ref.stats["num_steps"])
+        assert result == ref.result
+        assert bool(_StallingLevenbergMarquardt.stalled(state)) == bool(
+            _StallingLevenbergMarquardt.stalled(ref.state)
+        )
+        np.testing.assert_allclose(z, ref.value, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(z, y0)  # the spiky residual's: stalled at the start
+    # Rosenbrock's minimum itself, from the converged run above
+    sol = _levenberg_marquardt(
+        lambda z: (np.asarray(rosenbrock(jnp.asarray(z))), np.asarray(jax.jacfwd(rosenbrock)(z))),
+        _StallingLevenbergMarquardt(rtol=1e-8, atol=1e-8),
+        y0,
+        100,
+    )
+    np.testing.assert_allclose(sol[0], [1.0, 1.0], atol=1e-6)
+    assert sol[2] == optx.RESULTS.successful
 
 
 def test_debiased_information_removes_the_jacobian_noise():

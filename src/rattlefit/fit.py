@@ -791,11 +791,6 @@ class _Problem(eqx.Module):
 
         return map_blocks(block, rows)
 
-    def features(self, zs):
-        """Features of every realisation for each row of ``zs`` (K, P): (K, R, M, B)."""
-        out = self.features_of_rows(self.rows(zs))
-        return out.reshape(zs.shape[0], self.n_rec, self.y0.shape[1], -1)
-
     def regime_target(self):
         """The features whose regime the ensemble statistics describe (``FitOptions.regime``):
         the recordings' (R, B), or None for the common regime."""
@@ -885,8 +880,8 @@ def _features_chunk(problem: _Problem, rows):
 #: chaos makes that a different realisation. Not every multiple of 4 compiles alike either
 #: (session 32, the mild shared file's prior centre on this machine's EPYC without AVX-512):
 #: 4, 8 and 12 rows a device gave one realisation, 16, 20, 24 and 32 another (features up to
-#: 0.026 apart). (The Levenberg–Marquardt loop's own program, 21 rows a device on two, is
-#: another realisation anyway: its candidates are re-costed here.)
+#: 0.026 apart). Since session 33 the Levenberg–Marquardt runs simulate through this program
+#: too (:func:`_levenberg_marquardt`), so every stage of a fit sees one realisation.
 CHUNK_ROWS = 24
 
 
@@ -928,26 +923,87 @@ def _evaluate(problem: _Problem, zs, y0=None, realisations=None) -> np.ndarray:
     return out[np.argsort(order)]
 
 
-@jax.custom_jvp
-def _residual(z, problem: _Problem):
-    """Whitened residual (data rows, then prior rows) at ``z``.
-
-    A module-level function of ``(z, problem)`` so that optimistix compiles the
-    Levenberg–Marquardt loop once and reuses it for every start. Its derivative in ``z`` is
-    the finite-difference Jacobian of :func:`_fd_jacobian` (the problem is not differentiated).
-    """
-    mean = problem.mean_of(problem.features(z[None])[0])
-    return jnp.concatenate([problem.data_rows(mean), problem.prior_rows(z)])
-
-
-@_residual.defjvp
-def _residual_jvp(primals, tangents):
-    (z, problem), (t, _) = primals, tangents
-    h = problem.fd_steps(z)
-    h = jnp.where(z > 0, -h, h)  # towards the middle of each range: never leaves it
-    feats = problem.mean_of(problem.features(_fd_points(z, h, central=False)))
+def _jacobian_at(problem: _Problem, z) -> tuple[np.ndarray, np.ndarray]:
+    """The fit's residual (data rows, then prior rows) at ``z`` and its forward-difference
+    Jacobian (:func:`_fd_jacobian`, steps towards the middle of each range so that no point
+    leaves it), all 1 + P points simulated in one :func:`_evaluate`."""
+    z = np.asarray(z, dtype=float)
+    h = np.asarray(problem.fd_steps(z))
+    h = np.where(z > 0, -h, h)
+    feats = np.asarray(problem.mean_of(_evaluate(problem, _fd_points(z, h, central=False))))
     r, jac = _fd_jacobian(problem, z, h, feats, central=False)
-    return r, jac @ t
+    return np.asarray(r), np.asarray(jac)
+
+
+def _linearised_residual(z, args):
+    """The residual linearised at the last point simulated, ``args = (r, J, z_eval)``:
+    ``r + J (z − z_eval)``, and no auxiliary output (optimistix's solver interface).
+
+    :func:`_levenberg_marquardt` evaluates it only where it was linearised (optimistix's
+    Gauss–Newton step evaluates its function once a step, at the trial point ``y_eval``,
+    and linearises it there), so there it is the fit's residual and Jacobian themselves."""
+    r, jac, z_eval = args
+    return r + jac @ (z - z_eval), None
+
+
+@eqx.filter_jit
+def _lm_step(solver, z, state, args):
+    """One optimistix step of ``solver`` on :func:`_linearised_residual` (compiled once: the
+    simulation is not part of it)."""
+    return solver.step(_linearised_residual, z, args, {}, state, frozenset())
+
+
+def _levenberg_marquardt(jacobian_at: Callable, solver, z0, max_steps: int):
+    """optimistix's ``solver`` (a Gauss–Newton method) from ``z0``, stepped from Python
+    (optimistix's interactive interface). Before each step, ``jacobian_at(z)`` gives the
+    residual (n,) and its Jacobian (n, P) at the step's trial point (in :func:`identify`,
+    :func:`_jacobian_at`: simulated by the one compiled program of :func:`_evaluate`), and the
+    step sees them as :func:`_linearised_residual`. The iteration is optimistix's own: each
+    step linearises the residual at ``state.y_eval`` and accepts or rejects that point; the
+    loop, like ``optimistix.least_squares``'s, ends once ``solver.terminate`` says so, the
+    iterate is not finite, or after ``max_steps`` (tests/test_fit.py checks the iterates
+    against ``optimistix.least_squares`` on a closed-form residual).
+
+    Inside ``optimistix.least_squares`` the simulator was a second compiled program (about
+    9 s of tracing and compiling on a cold start in session 33, 2.7 s of tracing on a warm
+    one), and another chaotic realisation than the evaluations outside it (another row count),
+    so its candidates had to be re-costed anyway.
+
+    Returns ``(z, steps, result, state)``: the last accepted point, the steps taken, an
+    ``optimistix.RESULTS`` and the solver's final state.
+    """
+    z = jnp.asarray(z0, dtype=float)
+    r, jac = jacobian_at(np.asarray(z))  # the first step's: it is linearised at z0
+    n_out = len(r)
+    f_struct = jax.ShapeDtypeStruct((n_out,), z.dtype)
+    args = (jnp.asarray(r), jnp.asarray(jac), z)
+    state = solver.init(_linearised_residual, z, args, {}, f_struct, None, frozenset())
+    # one static part (the linear operator's jaxpr) for every run, so _lm_step compiles once
+    static = _LM_STATIC.setdefault(
+        (type(solver), n_out, z.shape[0]), eqx.filter(state, eqx.is_array, inverse=True)
+    )
+    state = eqx.combine(eqx.filter(state, eqx.is_array), static)
+    steps = 0
+    while True:
+        done, result = solver.terminate(_linearised_residual, z, args, {}, state, frozenset())
+        if not np.all(np.isfinite(np.asarray(z))):
+            result = optx.RESULTS.nonfinite
+        if bool(done) or result != optx.RESULTS.successful:
+            break
+        if steps == max_steps:
+            result = optx.RESULTS.nonlinear_max_steps_reached
+            break
+        if steps:
+            r, jac = jacobian_at(np.asarray(state.y_eval))
+            args = (jnp.asarray(r), jnp.asarray(jac), jnp.asarray(state.y_eval))
+        z, state, _ = _lm_step(solver, z, state, args)
+        steps += 1
+    return np.asarray(z), steps, result, state
+
+
+#: The static part of :func:`_levenberg_marquardt`'s initial solver state, by (solver type,
+#: residual length, parameters): reused so that :func:`_lm_step` is traced once a shape.
+_LM_STATIC: dict = {}
 
 
 def _residuals(problem: _Problem, zs, mean=None) -> np.ndarray:
@@ -1305,18 +1361,11 @@ def _refine_starts(problem: _Problem, starts, options: FitOptions, rng, say) -> 
     optima = []
     for rank, i in enumerate(order[: options.n_refine]):
         say(f"Levenberg–Marquardt from start {rank + 1}/{options.n_refine} (cost {costs[i]:.1f}) …")
-        sol = optx.least_squares(
-            _residual,
-            solver,
-            jnp.asarray(starts[i]),
-            args=problem,
-            max_steps=max_steps,
-            throw=False,
+        z, steps, result, state = _levenberg_marquardt(
+            functools.partial(_jacobian_at, problem), solver, starts[i], max_steps
         )
-        z = np.asarray(sol.value)
-        steps = int(sol.stats["num_steps"])
-        ok = bool(sol.result == optx.RESULTS.successful)
-        stalled = ok and bool(_StallingLevenbergMarquardt.stalled(sol.state))
+        ok = bool(result == optx.RESULTS.successful)
+        stalled = ok and bool(_StallingLevenbergMarquardt.stalled(state))
         if not ok:
             how = "stopped at the step limit"
         elif stalled:
@@ -1324,11 +1373,17 @@ def _refine_starts(problem: _Problem, starts, options: FitOptions, rng, say) -> 
         else:
             how = "converged"
         say(f"  → {steps} steps ({how})")
-        optima.append((z, steps, ok, stalled))
-    # Costs from differently compiled programs are different chaotic realisations, so the
-    # candidates (optima and the best start) are compared in one batched evaluation.
+        cost = float(np.sum(np.asarray(state.f_info.residual) ** 2))  # at z, simulated last
+        optima.append((z, steps, ok, stalled, cost))
+    # the candidates: the optima and the best start, each with its cost from the one compiled
+    # program of _evaluate (a row's features do not depend on the rows it is simulated with,
+    # so these are the costs a batch of the candidates would give, to the last bit)
     candidates = np.stack([o[0] for o in optima] + [starts[order[0]]])
-    final = _costs(problem, candidates)
+    if k_screen < options.n_realisations or options.screen == "mean":
+        start_cost = costs[order[0]]  # of all n_realisations, in these weights
+    else:
+        start_cost = _costs(problem, starts[order[:1]])[0]
+    final = np.array([o[4] for o in optima] + [start_cost])
     rank = np.argsort(final)
     say("candidate costs: " + ", ".join(f"{final[i]:.1f}" for i in rank))
     z = candidates[rank[0]]
