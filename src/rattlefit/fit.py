@@ -24,9 +24,11 @@ Rattle is chaotic, which shapes three choices:
    from the mean and the spread (:mod:`rattlefit.ensemble`, ``FitOptions.regime_threshold``).
 2. **Jacobian.** Pathwise derivatives of a chaotic trajectory grow like e^{λt} (measured here:
    forward-mode sensitivities of 3 s of rattle reach 1e65), so the Jacobian that the
-   Gauss–Newton model uses is a central difference of the ensemble-mean features at a finite
-   step (``fd_log_step`` in the log of each parameter), injected through ``jax.custom_jvp``.
-   It is the slope of the statistic that the data measure, at the resolution they can resolve.
+   Gauss–Newton model uses is a difference of the ensemble-mean features at a finite step
+   (``fd_log_step`` in the log of each parameter; forward in the Levenberg–Marquardt steps,
+   central for the covariance), handed to optimistix's solver at each step
+   (:func:`_levenberg_marquardt`). It is the slope of the statistic that the data measure, at
+   the resolution they can resolve.
 3. **Multi-start.** The cost is evaluated at a batch of seeded starting points over
    (a, T_b); Levenberg–Marquardt runs from the best ones and the lowest cost wins.
 
