@@ -8,6 +8,7 @@ from rattlefit.spectra import (
     band_power,
     quantisation_floor,
     rattle_index,
+    spectral_features,
     welch_psd,
 )
 
@@ -21,6 +22,22 @@ def test_welch_matches_scipy():
     ours = np.asarray(welch_psd(x, 1e4, 4096))
     np.testing.assert_allclose(ours, p, rtol=1e-10, atol=1e-30)
     assert np.allclose(BandSpec().frequencies, f)
+
+
+def test_spectra_are_computed_alike_traced_and_concrete():
+    # a recording's features are computed in numpy, a simulation's inside the compiled fit in
+    # JAX: both must be scipy's Welch PSD (checked above on the numpy side) to rounding
+    import jax
+
+    rng = np.random.default_rng(3)
+    x = np.cumsum(rng.normal(size=(2, 30000)), axis=1) * 1e-5
+    bands = BandSpec()
+    concrete = spectral_features(x, bands, noise_floor=1e-14)
+    assert isinstance(concrete, np.ndarray)  # nothing compiled for a recording
+    traced = jax.jit(lambda y: spectral_features(y, bands, noise_floor=1e-14))(x)
+    np.testing.assert_allclose(np.asarray(traced), concrete, rtol=0, atol=1e-12)
+    igr = jax.jit(lambda y: rattle_index(y, 1e4))(x)
+    np.testing.assert_allclose(np.asarray(igr), rattle_index(x, 1e4), rtol=1e-12)
 
 
 def test_white_noise_band_power_is_its_level():

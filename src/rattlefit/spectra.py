@@ -4,7 +4,8 @@ Rattle is chaotic: two runs of the same rig, or of the model from slightly diffe
 conditions, have different time histories but the same statistics. rattlefit therefore compares
 *spectral features*: the Welch power spectral density of Δθ* (Hann window, 50 % overlap,
 one-sided, rad²/Hz, as ``scipy.signal.welch``) averaged in log-spaced frequency bands, in
-log10. All functions accept numpy or JAX arrays and are differentiable in JAX.
+log10. All functions accept numpy or JAX arrays and are differentiable in JAX; on concrete
+arrays they compute in numpy (nothing to compile), while traced in JAX.
 """
 
 from __future__ import annotations
@@ -12,9 +13,10 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
+
+from ._util import array_namespace
 
 #: Frequency band of the gear rattle index, eq. (10) of the seed paper, Hz.
 IGR_BAND_HZ = (20.0, 5000.0)
@@ -96,9 +98,12 @@ def welch_psd(
 ) -> Float[Array, "*batch F"]:
     """One-sided Welch PSD (rad²/Hz): Hann window, 50 % overlap, each segment's mean removed.
 
-    Matches ``scipy.signal.welch(x, fs, nperseg=segment_length)`` (its defaults).
+    Matches ``scipy.signal.welch(x, fs, nperseg=segment_length)`` (its defaults). Computed
+    in numpy for concrete input and in JAX while traced (:func:`~rattlefit._util.array_namespace`),
+    as are the other spectra here: a recording's features then compile nothing.
     """
-    x = jnp.asarray(x)
+    xp = array_namespace(x)
+    x = xp.asarray(x)
     n = x.shape[-1]
     if n < segment_length:
         raise ValueError(f"signal of {n} samples is shorter than one segment ({segment_length})")
@@ -106,11 +111,11 @@ def welch_psd(
     starts = np.arange(0, n - segment_length + 1, step)
     index = starts[:, None] + np.arange(segment_length)[None, :]
     seg = x[..., index]
-    seg = seg - jnp.mean(seg, axis=-1, keepdims=True)
+    seg = seg - xp.mean(seg, axis=-1, keepdims=True)
     window = np.hanning(segment_length + 1)[:-1]  # periodic Hann, as scipy's 'hann'
-    spec = jnp.abs(jnp.fft.rfft(seg * window, axis=-1)) ** 2
+    spec = xp.abs(xp.fft.rfft(seg * window, axis=-1)) ** 2
     scale = 1.0 / (sample_rate * np.sum(window**2))
-    psd = jnp.mean(spec, axis=-2) * scale
+    psd = xp.mean(spec, axis=-2) * scale
     one_sided = np.full(segment_length // 2 + 1, 2.0)
     one_sided[0] = 1.0
     if segment_length % 2 == 0:
@@ -121,7 +126,7 @@ def welch_psd(
 def band_power(x: Float[ArrayLike, "*batch N"], bands: BandSpec) -> Float[Array, "*batch B"]:
     """Mean Welch PSD in each band, rad²/Hz."""
     psd = welch_psd(x, bands.sample_rate, bands.segment_length)
-    return psd @ jnp.asarray(bands.matrix.T)
+    return psd @ array_namespace(psd).asarray(bands.matrix.T)
 
 
 def spectral_features(
@@ -132,7 +137,8 @@ def spectral_features(
     Adding the encoder quantisation floor (:func:`quantisation_floor`) to a simulated,
     unquantised signal gives the expected features of its measurement.
     """
-    return jnp.log10(band_power(x, bands) + noise_floor)
+    power = band_power(x, bands)
+    return array_namespace(power).log10(power + noise_floor)
 
 
 def quantisation_std(counts_per_rev: int, gear_ratio: float) -> float:
@@ -152,9 +158,10 @@ def amplitude_spectrum(
 
     A sinusoid of amplitude A at a bin frequency shows as A.
     """
-    x = jnp.asarray(x)
+    xp = array_namespace(x)
+    x = xp.asarray(x)
     n = x.shape[-1]
-    spec = jnp.abs(jnp.fft.rfft(x - jnp.mean(x, axis=-1, keepdims=True), axis=-1)) * (2.0 / n)
+    spec = xp.abs(xp.fft.rfft(x - xp.mean(x, axis=-1, keepdims=True), axis=-1)) * (2.0 / n)
     return np.fft.rfftfreq(n, 1.0 / sample_rate), spec
 
 
@@ -174,7 +181,8 @@ def rattle_index(
     consecutive non-overlapping ``segment``-second blocks (1 Hz bins) and averages them. Only
     recordings with the same sample rate compare (the band is clipped at Nyquist).
     """
-    x = jnp.asarray(x)
+    xp = array_namespace(x)
+    x = xp.asarray(x)
     n_seg = round(segment * sample_rate)
     n_blocks = x.shape[-1] // n_seg
     if n_blocks < 1:
@@ -183,4 +191,4 @@ def rattle_index(
     f, amp = amplitude_spectrum(blocks, sample_rate)
     sel = (f >= band[0]) & (f <= band[1])
     df = sample_rate / n_seg
-    return jnp.mean(jnp.sum(amp[..., sel], axis=-1) * df, axis=-1)
+    return xp.mean(xp.sum(amp[..., sel], axis=-1) * df, axis=-1)
