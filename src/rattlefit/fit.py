@@ -1385,7 +1385,7 @@ def _refine_starts(problem: _Problem, starts, options: FitOptions, rng, say) -> 
         else:
             how = "converged"
         say(f"  → {steps} steps ({how})")
-        cost = float(np.sum(np.asarray(state.f_info.residual) ** 2))  # at z, simulated last
+        cost = float(np.sum(np.asarray(state.f_info.residual) ** 2))  # at z, the last accepted
         optima.append((z, steps, ok, stalled, cost))
     # the candidates: the optima and the best start, each with its cost from the one compiled
     # program of _evaluate (a row's features do not depend on the rows it is simulated with,
