@@ -34,6 +34,7 @@ import time
 import numpy as np
 
 import rattlefit as rf
+from _options import add_set_argument, set_overrides
 from rattlefit.fit import FitOptions, identify
 from rattlefit.oil import dynamic_viscosity
 from rattlefit.parameters import film_names, parse_prior
@@ -72,13 +73,7 @@ def main() -> None:
     )
     ap.add_argument("--rtol", type=float, help="FitOptions.rtol (default: FitOptions')")
     ap.add_argument("--dither", type=float, help="FitOptions.dither (default: FitOptions')")
-    ap.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="FIELD=JSON",
-        help="replace a FitOptions field, e.g. profile_roughness=true (repeatable)",
-    )
+    add_set_argument(ap)
     ap.add_argument(
         "--prior",
         action="append",
@@ -94,17 +89,7 @@ def main() -> None:
             overrides["priors"] = dict(parse_prior(text) for text in args.prior)
         except rf.RattlefitError as exc:
             ap.error(f"--prior: {exc}")
-    fields = {f.name for f in dataclasses.fields(FitOptions)}
-    for item in args.set:
-        name, sep, value = item.partition("=")
-        if not sep or name not in fields or name == "seed":
-            ap.error(
-                f"--set {item!r}: expected FIELD=JSON with FIELD a FitOptions field other than seed"
-            )
-        try:
-            overrides[name] = json.loads(value)
-        except json.JSONDecodeError as exc:
-            ap.error(f"--set {item!r}: the value is not JSON ({exc})")
+    overrides.update(set_overrides(ap, args.set))
     print(
         f"{rf.use_cpu_cores()} JAX device(s); seed {args.seed}; FitOptions overrides {overrides}",
         flush=True,

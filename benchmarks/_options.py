@@ -1,0 +1,37 @@
+"""`--set FIELD=JSON` overrides of `FitOptions`, shared by the studies in this directory."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+
+from rattlefit.fit import FitOptions
+
+
+def add_set_argument(ap: argparse.ArgumentParser) -> None:
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="FIELD=JSON",
+        help="replace a FitOptions field, e.g. profile_roughness=true (repeatable)",
+    )
+
+
+def set_overrides(ap: argparse.ArgumentParser, items: list[str]) -> dict:
+    """The ``FitOptions`` fields named by ``--set`` items, their values read as JSON; a bad
+    item ends the script through ``ap.error``."""
+    fields = {f.name for f in dataclasses.fields(FitOptions)}
+    overrides = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or name not in fields or name == "seed":
+            ap.error(
+                f"--set {item!r}: expected FIELD=JSON with FIELD a FitOptions field other than seed"
+            )
+        try:
+            overrides[name] = json.loads(value)
+        except json.JSONDecodeError as exc:
+            ap.error(f"--set {item!r}: the value is not JSON ({exc})")
+    return overrides

@@ -1,0 +1,133 @@
+"""Does a joint fit of a backlash sweep tighten the intervals? A study over seeded sweeps.
+
+Issue 3 asks that a joint fit of a backlash sweep (one gear pair, one lubrication, several
+centre distances: the paper's Figs. 10–12) tighten the intervals compared with the single
+recordings. One sweep answers that for one realisation only: rattle is chaotic, the cost is
+rough at the scale of a few per cent of a parameter, and which way one comparison falls has
+changed with every change of realisation (tests/test_fit.py's sweep: benchmarks/README, "The
+joint sweep's tightening over many sweeps"). This script asks it of many: for each of
+``--sweeps`` seeded sweeps (`rattlefit.synthetic.backlash_sweep`, pair II in boundary
+lubrication, 10 % at 8 Hz by default; every recording with its own seed, printed), it
+identifies each recording alone and all of them jointly with the default `FitOptions`
+(fit seed: the sweep's), and reports for the shared parameters (`a`, `drag_torque`,
+`viscosity`) each interval's width in log, whether the joint one is narrower than the
+narrowest single one, and whether each holds the truth.
+
+    python benchmarks/sweep_study.py [--sweeps 6] [--seed 0] [--center-distances 65.0 65.4]
+                                     [--only K ...] [--json out.json] [--quiet]
+                                     [--set FIELD=JSON ...]
+
+Each sweep costs its singles and the joint fit: about 5 minutes on 2 cores for two
+centre distances.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+import numpy as np
+
+import rattlefit as rf
+from _options import add_set_argument, set_overrides
+from rattlefit.fit import FitOptions, identify
+from rattlefit.synthetic import backlash_sweep
+
+SHARED = ("a", "drag_torque", "viscosity")
+
+
+def log_width(q) -> float:
+    """The 95 % interval's width in natural log (infinite where it reaches zero)."""
+    return float(np.log(q.upper / q.lower)) if q.lower > 0 else float("inf")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sweeps", type=int, default=6)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--center-distances", type=float, nargs="+", default=[65.0, 65.4])
+    ap.add_argument("--only", type=int, nargs="+", metavar="K", help="run only these sweeps")
+    ap.add_argument("--json")
+    ap.add_argument("--quiet", action="store_true", help="print results, not identify's progress")
+    add_set_argument(ap)
+    args = ap.parse_args()
+    overrides = set_overrides(ap, args.set)
+    cds = args.center_distances
+    if len(cds) < 2:
+        ap.error("--center-distances: a sweep needs at least two")
+    print(
+        f"{rf.use_cpu_cores()} JAX device(s); seed {args.seed}; centre distances {cds} mm; "
+        f"FitOptions overrides {overrides}"
+    )
+    rng = np.random.default_rng(args.seed)
+    rows = []
+    for n in range(args.sweeps):
+        seeds = [int(s) for s in rng.integers(1 << 30, size=len(cds))]
+        fit_seed = int(rng.integers(1 << 30))
+        if args.only and n + 1 not in args.only:
+            continue
+        sweep = backlash_sweep(cds, seeds)
+        truth = sweep[0][1]
+        truth = {
+            "a": float(truth.film_half_length),
+            "drag_torque": float(truth.drag_torque),
+            "viscosity": float(truth.viscosity),
+        }
+
+        def fit(recs, label, n=n, fit_seed=fit_seed):
+            say = None if args.quiet else (lambda msg: print(f"  [{n + 1} {label}] {msg}"))
+            return identify(recs, FitOptions(seed=fit_seed, **overrides), progress=say)
+
+        t0 = time.perf_counter()
+        singles = [fit([rec], f"{cd} mm") for (rec, _), cd in zip(sweep, cds, strict=True)]
+        joint = fit([rec for rec, _ in sweep], "joint")
+        row = {"recording_seeds": seeds, "fit_seed": fit_seed, "wall_s": 0.0}
+        for name, value in truth.items():
+            js, ss = joint.parameters[name], [s.parameters[name] for s in singles]
+            w_single = [log_width(q) for q in ss]
+            row[name] = {
+                "truth": value,
+                "joint": [float(js.lower), float(js.upper)],
+                "singles": [[float(q.lower), float(q.upper)] for q in ss],
+                "joint_width": log_width(js),
+                "single_widths": w_single,
+                "tighter": bool(log_width(js) < min(w_single)),
+                "joint_covered": bool(js.lower <= value <= js.upper),
+                "singles_covered": [bool(q.lower <= value <= q.upper) for q in ss],
+            }
+        row["wall_s"] = time.perf_counter() - t0
+        rows.append(row)
+        parts = [
+            f"{k} {row[k]['joint_width']:.2f} vs {min(row[k]['single_widths']):.2f}"
+            f"{' tighter' if row[k]['tighter'] else ''}"
+            f"{'' if row[k]['joint_covered'] else ' (joint misses truth)'}"
+            for k in SHARED
+        ]
+        print(
+            f"[{n + 1}/{args.sweeps}] seeds {seeds}, fit seed {fit_seed}: joint vs narrowest "
+            f"single (log width): {'; '.join(parts)}; {row['wall_s']:.0f} s",
+            flush=True,
+        )
+    for k in SHARED:
+        ratios = [r[k]["joint_width"] / min(r[k]["single_widths"]) for r in rows]
+        print(
+            f"{k}: joint tighter in {sum(r[k]['tighter'] for r in rows)}/{len(rows)} sweeps, "
+            f"median width ratio {np.median(ratios):.2f}; joint holds the truth in "
+            f"{sum(r[k]['joint_covered'] for r in rows)}/{len(rows)}, singles in "
+            f"{sum(sum(r[k]['singles_covered']) for r in rows)}/{len(rows) * len(cds)}"
+        )
+    if args.json:  # written whole, then renamed: never a half-written file
+        tmp = f"{args.json}.tmp"
+        with open(tmp, "w") as fh:
+            json.dump(
+                {"options": overrides, "seed": args.seed, "center_distances": cds, "sweeps": rows},
+                fh,
+                indent=2,
+            )
+        os.replace(tmp, args.json)
+
+
+if __name__ == "__main__":
+    main()
