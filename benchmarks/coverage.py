@@ -27,14 +27,12 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import itertools
-import json
-import os
 import time
 
 import numpy as np
 
 import rattlefit as rf
-from _options import add_set_argument, set_overrides
+from _study import add_set_argument, set_overrides, write_json
 from rattlefit.fit import FitOptions, identify
 from rattlefit.oil import dynamic_viscosity
 from rattlefit.parameters import film_names, parse_prior
@@ -182,21 +180,9 @@ def main() -> None:
         f"{len(flagged)} case(s) flagged as a poor fit; coverage of the others: "
         f"{hit}/{3 * len(unflagged)}"
     )
-    if args.json:  # written whole, then renamed: never a half-written file
-        tmp = f"{args.json}.tmp"
-        with open(tmp, "w") as fh:
-            json.dump(
-                {
-                    "options": overrides,
-                    "seed": args.seed,
-                    "companion": args.companion,
-                    "cases": rows,
-                },
-                fh,
-                indent=2,
-                default=dataclasses.asdict,  # the priors' specs
-            )
-        os.replace(tmp, args.json)
+    if args.json:
+        doc = {"options": overrides, "seed": args.seed, "companion": args.companion, "cases": rows}
+        write_json(args.json, doc, default=dataclasses.asdict)  # the priors' specs
 
 
 if __name__ == "__main__":

@@ -24,14 +24,12 @@ centre distances.
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import time
 
 import numpy as np
 
 import rattlefit as rf
-from _options import add_set_argument, set_overrides
+from _study import add_set_argument, set_overrides, write_json
 from rattlefit.fit import FitOptions, identify
 from rattlefit.synthetic import backlash_sweep
 
@@ -118,15 +116,9 @@ def main() -> None:
             f"{sum(r[k]['joint_covered'] for r in rows)}/{len(rows)}, singles in "
             f"{sum(sum(r[k]['singles_covered']) for r in rows)}/{len(rows) * len(cds)}"
         )
-    if args.json:  # written whole, then renamed: never a half-written file
-        tmp = f"{args.json}.tmp"
-        with open(tmp, "w") as fh:
-            json.dump(
-                {"options": overrides, "seed": args.seed, "center_distances": cds, "sweeps": rows},
-                fh,
-                indent=2,
-            )
-        os.replace(tmp, args.json)
+    if args.json:
+        doc = {"options": overrides, "seed": args.seed, "center_distances": cds, "sweeps": rows}
+        write_json(args.json, doc)
 
 
 if __name__ == "__main__":

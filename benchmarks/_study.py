@@ -1,10 +1,12 @@
-"""`--set FIELD=JSON` overrides of `FitOptions`, shared by the studies in this directory."""
+"""What the studies in this directory share: `--set FIELD=JSON` overrides of `FitOptions`, and
+their JSON reports written whole."""
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
 import json
+import os
 
 from rattlefit.fit import FitOptions
 
@@ -35,3 +37,12 @@ def set_overrides(ap: argparse.ArgumentParser, items: list[str]) -> dict:
         except json.JSONDecodeError as exc:
             ap.error(f"--set {item!r}: the value is not JSON ({exc})")
     return overrides
+
+
+def write_json(path: str, doc: dict, **dump_options) -> None:
+    """``doc`` as JSON at ``path``, written to a temporary file and renamed: never a
+    half-written report."""
+    tmp = f"{path}.tmp"
+    with open(tmp, "w") as fh:
+        json.dump(doc, fh, indent=2, **dump_options)
+    os.replace(tmp, path)
