@@ -81,7 +81,14 @@ def main() -> None:
         t0 = time.perf_counter()
         singles = [fit([rec], f"{cd} mm") for (rec, _), cd in zip(sweep, cds, strict=True)]
         joint = fit([rec for rec, _ in sweep], "joint")
-        row = {"recording_seeds": seeds, "fit_seed": fit_seed, "wall_s": 0.0}
+        fits = [*singles, joint]
+        row = {
+            "recording_seeds": seeds,
+            "fit_seed": fit_seed,
+            # singles in centre-distance order, then the joint fit
+            "chi2_dof": [[f.chi2, f.dof] for f in fits],
+            "profile_threshold": [f.profile.get("threshold") for f in fits],
+        }
         for name, value in truth.items():
             js, ss = joint.parameters[name], [s.parameters[name] for s in singles]
             w_single = [log_width(q) for q in ss]
