@@ -14,8 +14,12 @@ identifies each recording alone and all of them jointly with the default `FitOpt
 narrowest single one, and whether each holds the truth.
 
     python benchmarks/sweep_study.py [--sweeps 6] [--seed 0] [--center-distances 65.0 65.4]
-                                     [--only K ...] [--json out.json] [--quiet]
+                                     [--only K ...] [--refits R] [--json out.json] [--quiet]
                                      [--set FIELD=JSON ...]
+
+`--refits R` fits each sweep R more times, each time with another fit seed (drawn from the
+sweep's own), the recordings unchanged: how much of a comparison is the fit's own chance
+(release states, starts, dither), not the data. It prints each interval's width over the fits.
 
 Each sweep costs its singles and the joint fit. Measured in session 34 (2 cores): 151–338 s a
 sweep at 65.4 + 66.0 mm, 384–510 s at 65.0 + 65.4 mm and 399–587 s for three distances, the
@@ -42,12 +46,71 @@ def log_width(q) -> float:
     return float(np.log(q.upper / q.lower)) if q.lower > 0 else float("inf")
 
 
+def study_sweep(args, overrides, n, cds, sweep, truth, seeds, fit_seed) -> dict:
+    """Fit one sweep's recordings singly and jointly with one fit seed; its row, printed."""
+
+    def fit(recs, label):
+        say = None if args.quiet else (lambda msg: print(f"  [{n + 1} {label}] {msg}"))
+        return identify(recs, FitOptions(seed=fit_seed, **overrides), progress=say)
+
+    t0 = time.perf_counter()
+    singles = [fit([rec], f"{cd} mm") for (rec, _), cd in zip(sweep, cds, strict=True)]
+    joint = fit([rec for rec, _ in sweep], "joint")
+    fits = [*singles, joint]
+    row = {
+        "recording_seeds": seeds,
+        "fit_seed": fit_seed,
+        # singles in centre-distance order, then the joint fit
+        "chi2_dof": [[f.chi2, f.dof] for f in fits],
+        "profile_threshold": [f.profile.get("threshold") for f in fits],
+    }
+    for name, value in truth.items():
+        js, ss = joint.parameters[name], [s.parameters[name] for s in singles]
+        w_single = [log_width(q) for q in ss]
+        row[name] = {
+            "truth": value,
+            "joint": [float(js.lower), float(js.upper)],
+            "singles": [[float(q.lower), float(q.upper)] for q in ss],
+            "joint_width": log_width(js),
+            "single_widths": w_single,
+            "tighter": bool(log_width(js) < min(w_single)),
+            "joint_covered": bool(js.lower <= value <= js.upper),
+            "singles_covered": [bool(q.lower <= value <= q.upper) for q in ss],
+        }
+    row["wall_s"] = time.perf_counter() - t0
+    parts = [
+        f"{k} {row[k]['joint_width']:.2f} vs {min(row[k]['single_widths']):.2f}"
+        f"{' tighter' if row[k]['tighter'] else ''}"
+        f"{'' if row[k]['joint_covered'] else ' (joint misses truth)'}"
+        for k in SHARED
+    ]
+    print(
+        f"[{n + 1}/{args.sweeps}] seeds {seeds}, fit seed {fit_seed}: joint vs narrowest "
+        f"single (log width): {'; '.join(parts)}; {row['wall_s']:.0f} s",
+        flush=True,
+    )
+    return row
+
+
+def print_spread(rows: list[dict], cds) -> None:
+    """Each shared parameter's interval widths (log) over one sweep's fits with other seeds."""
+    labels = [f"{cd} mm" for cd in cds] + ["joint"]
+    for k in SHARED:
+        widths = np.array([[*r[k]["single_widths"], r[k]["joint_width"]] for r in rows])
+        parts = [
+            f"{label} {', '.join(f'{w:.2f}' for w in col)} (sd {np.std(col, ddof=1):.2f})"
+            for label, col in zip(labels, widths.T, strict=True)
+        ]
+        print(f"  {k} over {len(rows)} fit seeds: {'; '.join(parts)}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sweeps", type=int, default=6)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--center-distances", type=float, nargs="+", default=[65.0, 65.4])
     ap.add_argument("--only", type=int, nargs="+", metavar="K", help="run only these sweeps")
+    ap.add_argument("--refits", type=int, default=0, help="fits with other fit seeds per sweep")
     ap.add_argument("--json")
     ap.add_argument("--quiet", action="store_true", help="print results, not identify's progress")
     add_set_argument(ap)
@@ -75,51 +138,17 @@ def main() -> None:
             "viscosity": float(truth.viscosity),
         }
 
-        def fit(recs, label, n=n, fit_seed=fit_seed):
-            say = None if args.quiet else (lambda msg: print(f"  [{n + 1} {label}] {msg}"))
-            return identify(recs, FitOptions(seed=fit_seed, **overrides), progress=say)
-
-        t0 = time.perf_counter()
-        singles = [fit([rec], f"{cd} mm") for (rec, _), cd in zip(sweep, cds, strict=True)]
-        joint = fit([rec for rec, _ in sweep], "joint")
-        fits = [*singles, joint]
-        row = {
-            "recording_seeds": seeds,
-            "fit_seed": fit_seed,
-            # singles in centre-distance order, then the joint fit
-            "chi2_dof": [[f.chi2, f.dof] for f in fits],
-            "profile_threshold": [f.profile.get("threshold") for f in fits],
-        }
-        for name, value in truth.items():
-            js, ss = joint.parameters[name], [s.parameters[name] for s in singles]
-            w_single = [log_width(q) for q in ss]
-            row[name] = {
-                "truth": value,
-                "joint": [float(js.lower), float(js.upper)],
-                "singles": [[float(q.lower), float(q.upper)] for q in ss],
-                "joint_width": log_width(js),
-                "single_widths": w_single,
-                "tighter": bool(log_width(js) < min(w_single)),
-                "joint_covered": bool(js.lower <= value <= js.upper),
-                "singles_covered": [bool(q.lower <= value <= q.upper) for q in ss],
-            }
-        row["wall_s"] = time.perf_counter() - t0
-        rows.append(row)
-        parts = [
-            f"{k} {row[k]['joint_width']:.2f} vs {min(row[k]['single_widths']):.2f}"
-            f"{' tighter' if row[k]['tighter'] else ''}"
-            f"{'' if row[k]['joint_covered'] else ' (joint misses truth)'}"
-            for k in SHARED
-        ]
-        print(
-            f"[{n + 1}/{args.sweeps}] seeds {seeds}, fit seed {fit_seed}: joint vs narrowest "
-            f"single (log width): {'; '.join(parts)}; {row['wall_s']:.0f} s",
-            flush=True,
-        )
+        extra = np.random.default_rng(fit_seed).integers(1 << 30, size=args.refits)
+        fit_seeds = [fit_seed, *(int(x) for x in extra)]
+        for refit, seed_k in enumerate(fit_seeds):
+            rows.append(study_sweep(args, overrides, n, cds, sweep, truth, seeds, seed_k))
+            rows[-1]["refit"] = refit
+        if args.refits:
+            print_spread(rows[-len(fit_seeds) :], cds)
     for k in SHARED:
         ratios = [r[k]["joint_width"] / min(r[k]["single_widths"]) for r in rows]
         print(
-            f"{k}: joint tighter in {sum(r[k]['tighter'] for r in rows)}/{len(rows)} sweeps, "
+            f"{k}: joint tighter in {sum(r[k]['tighter'] for r in rows)}/{len(rows)} sweep fits, "
             f"median width ratio {np.median(ratios):.2f}; joint holds the truth in "
             f"{sum(r[k]['joint_covered'] for r in rows)}/{len(rows)}, singles in "
             f"{sum(sum(r[k]['singles_covered']) for r in rows)}/{len(rows) * len(cds)}"
