@@ -1,9 +1,8 @@
 """Is the profile roughness near the optimum noise, or structure of the cost?
 
 `identify`'s roughness allowance (`FitOptions.profile_roughness`) takes the rms Δcost of the
-points 1–2 % (in z) from the optimum, each parameter's slope through it removed (since session
-35, `rattlefit.profile.jitter_noise`), as the noise of a profile's Δcost, and widens the
-profile threshold by 1.645 × that rms. This script fits a recording as `identify` does up to the
+points 1–2 % (in z) from the optimum as the noise of a profile's Δcost, and widens the profile
+threshold by 1.645 × that rms. This script fits a recording as `identify` does up to the
 optimum (spread, starts, Levenberg–Marquardt), then costs the optimum and those jitter points
 four times, each time with the noise model re-estimated at the optimum from that set's own
 realisations, as the profile stage does:
@@ -43,7 +42,7 @@ import numpy as np  # noqa: E402
 
 import rattlefit.fit as F  # noqa: E402
 from rattlefit.parameters import Z_END  # noqa: E402
-from rattlefit.profile import PROFILE_JITTER, jitter_noise  # noqa: E402
+from rattlefit.profile import PROFILE_JITTER  # noqa: E402
 from rattlefit.recording import read_recording  # noqa: E402
 
 RECORDINGS = Path(__file__).resolve().parents[2] / "shared" / "recordings"
@@ -124,8 +123,7 @@ def main() -> None:
     for name, (prob, y0) in sets.items():
         d = jitter_dcosts(prob, options, z, near, y0, dof_rec)
         rows.append(d)
-        rms = np.sqrt(np.mean(d**2))
-        say(f"{name}: Δcost {np.round(d, 1)}, rms {rms:.1f} ({jitter_noise(d):.1f} slopes removed)")
+        say(f"{name}: Δcost {np.round(d, 1)}, rms {np.sqrt(np.mean(d**2)):.1f}")
     rows = np.array(rows)
     mean, sd = rows.mean(axis=0), rows.std(axis=0, ddof=1)
     print("\njitter point        mean Δcost   sd over the 4 sets")

@@ -295,15 +295,6 @@ class FitOptions:
         The cost: wider intervals where the profile is rough (the mild file's ``T_b``
         [0.0062, 0.0298] N m, not identified, against [0.0171, 0.0287]), and 4 simulations
         per free parameter per covariance realisation (a few per cent of a fit).
-        Since session 35 each free parameter's slope through the optimum is removed from its
-        jitter Δcosts before their rms is taken (:func:`~rattlefit.profile.jitter_noise`): a
-        slope is where the optimum stopped short of the minimum (the profiles then reach
-        below it, which already widens the intervals), not noise. It matters where the
-        optimum sits on the wall of a stiff valley: on a joint backlash-sweep fit (65.0 and
-        65.4 mm) the jitter along ``a`` rose 22 per 1 % step, and with the slopes removed
-        the allowance fell from 29.6 to 16.1 (threshold 52.6 → 30.4). On the coverage
-        study's 10 single cases the thresholds moved by −2.1 to +0.6 and the coverage held
-        at 30/30 (benchmarks/README, "Slopes are not noise").
     roughness_sets : with ``profile_roughness``, how many independent sets of realisations
         (release states, dither offsets and encoder phases) cost the points 1–2 % from the
         optimum. With 1 the allowance is their root mean square Δcost, which counts the
@@ -619,9 +610,8 @@ class FitResult:
     #: that ends a profile interval, :func:`~rattlefit.profile.profile_threshold`),
     #: ``monte_carlo_sd`` (its analytic noise allowance's sd) and, with
     #: ``FitOptions.profile_roughness``, ``roughness_rms`` (the rms Δcost 1–2 % from the
-    #: optimum once each parameter's slope is removed, :func:`~rattlefit.profile.jitter_noise`),
-    #: ``realisation_sets`` and, with more than one, ``roughness_sd`` (their spread over the
-    #: sets)
+    #: optimum), ``realisation_sets`` and, with more than one, ``roughness_sd`` (their spread
+    #: over the sets)
     profile: dict[str, float] = dataclasses.field(default_factory=dict)
 
     @property
@@ -1589,8 +1579,8 @@ def identify(
                 spread = f", sd {sd_sets:.1f} over {len(jitter_costs)} realisation sets"
                 profile_info["roughness_sd"] = float(sd_sets)
             say(
-                f"  profile roughness: Δcost rms {rms:.1f} (slopes removed){spread} within 1–2 % "
-                f"of the optimum (Monte Carlo alone: {noise_sd:.1f}); threshold {threshold:.1f}"
+                f"  profile roughness: Δcost rms {rms:.1f}{spread} within 1–2 % of the "
+                f"optimum (Monte Carlo alone: {noise_sd:.1f}); threshold {threshold:.1f}"
             )
         profile_info["threshold"] = float(threshold)
         profile_costs = ProfileCosts(

@@ -64,15 +64,12 @@ def profile_threshold(noise_sd: float, jitter_costs: np.ndarray | None = None) -
 
     χ²₁'s 95 % quantile, plus a one-sided 95 % allowance (1.645 standard deviations) for the
     noise of a difference of two costs: ``noise_sd``, the analytic Monte Carlo part, or where
-    ``jitter_costs`` are given (the Δcost of points :data:`PROFILE_JITTER` from the optimum
-    along each free parameter in turn, where the profile's smooth part is negligible) and
-    exceed it, their measured noise (:func:`jitter_noise`):
+    ``jitter_costs`` are given (the Δcost of points a step of 1–2 % from the optimum, where the
+    profile's smooth part is negligible) and exceed it, their measured noise:
 
-    * one row (or a 1-D array), from one set of realisations: their root mean square once
-      each parameter's slope through the optimum is removed. What remains counts the cost's
-      even structure near the optimum (a kink, the dip of a rough cost the optimum sits in)
-      as noise too; the slope does not belong: it is where the optimum stopped short of the
-      minimum, and the profiles measured from that optimum already reach below it;
+    * one row (or a 1-D array), from one set of realisations: their root mean square, which
+      counts the cost's structure near the optimum (a slope where the optimum stopped short of
+      the minimum, a kink) as noise too;
     * several rows, each from an independent set of realisations (release states, dither and
       encoder phases): their standard deviation over the sets, pooled over the points — the
       noise, since the structure repeats from set to set. It includes the slopes that the
@@ -85,30 +82,14 @@ def profile_threshold(noise_sd: float, jitter_costs: np.ndarray | None = None) -
     return CHI2_1_95 + 1.645 * sd
 
 
-def jitter_noise(jitter_costs, steps: Sequence[float] = PROFILE_JITTER) -> float:
+def jitter_noise(jitter_costs) -> float:
     """The measured noise of a Δcost from the jitter points' Δcosts (sets × points, or one
-    set as a 1-D array; the points ``len(steps)`` per free parameter, parameter by parameter,
-    at ``steps`` from the optimum, symmetric about it): from one set, the root mean square of
-    what is left once each parameter's least-squares slope ``g·h`` is removed; from several,
-    their standard deviation over the sets pooled over the points (:func:`profile_threshold`).
-
-    The one set's sum of squares is divided by n − m/2 (n Δcosts, m parameters), which makes
-    its square unbiased for the variance s² of a Δcost where each point's cost has independent
-    noise of variance s²/2 and the optimum's is common to all n: that shared part is even in
-    ``h`` and survives the slopes' removal, while each slope takes half a point's worth of
-    the rest."""
+    set as a 1-D array): one set's root mean square, or the standard deviation over several
+    sets pooled over the points (:func:`profile_threshold`)."""
     costs = np.atleast_2d(np.asarray(jitter_costs, dtype=float))
-    if len(costs) > 1:
-        return float(np.sqrt(np.mean(np.var(costs, axis=0, ddof=1))))
-    h = np.asarray(steps, dtype=float)
-    if costs.shape[1] % len(h):
-        raise ValueError(
-            f"jitter_noise: {costs.shape[1]} Δcosts are not {len(h)} per parameter (steps {h})"
-        )
-    per_parameter = costs.reshape(-1, len(h))
-    slopes = per_parameter @ h / (h @ h)
-    residual = per_parameter - slopes[:, None] * h
-    return float(np.sqrt(np.sum(residual**2) / (residual.size - len(per_parameter) / 2)))
+    if len(costs) == 1:
+        return float(np.sqrt(np.mean(np.square(costs))))
+    return float(np.sqrt(np.mean(np.var(costs, axis=0, ddof=1))))
 
 
 def profile_scan(specs: Sequence, z, cov, profile_costs) -> dict:

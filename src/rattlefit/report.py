@@ -112,7 +112,7 @@ def _profile_line(profile: dict) -> str:
                 f"{profile['realisation_sets']} realisation sets"
             )
         else:
-            source = "the cost's roughness 1–2 % from the optimum (rms, slopes removed)"
+            source = "the cost's roughness (rms) 1–2 % from the optimum"
     return (
         f"95 % intervals: where the profile cost is within {profile['threshold']:.1f} of the "
         f"optimum's (χ²₁ {CHI2_1_95:.2f} + 1.645 × {sd:.1f}, {source})"
