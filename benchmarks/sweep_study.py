@@ -15,7 +15,7 @@ narrowest single one, and whether each holds the truth.
 
     python benchmarks/sweep_study.py [--sweeps 6] [--seed 0] [--center-distances 65.0 65.4]
                                      [--only K ...] [--refits R] [--json out.json] [--quiet]
-                                     [--set FIELD=JSON ...]
+                                     [--recording-seeds S ...] [--set FIELD=JSON ...]
 
 `--refits R` fits each sweep R more times, each time with another fit seed (drawn from the
 sweep's own), the recordings unchanged: how much of a comparison is the fit's own chance
@@ -111,6 +111,14 @@ def main() -> None:
     ap.add_argument("--center-distances", type=float, nargs="+", default=[65.0, 65.4])
     ap.add_argument("--only", type=int, nargs="+", metavar="K", help="run only these sweeps")
     ap.add_argument("--refits", type=int, default=0, help="fits with other fit seeds per sweep")
+    ap.add_argument(
+        "--recording-seeds",
+        type=int,
+        nargs="+",
+        metavar="S",
+        help="one sweep of these recording seeds (one per centre distance) instead of drawn ones, "
+        "e.g. 21 22 for tests/test_fit.py's; the fit seed is still drawn",
+    )
     ap.add_argument("--json")
     ap.add_argument("--quiet", action="store_true", help="print results, not identify's progress")
     add_set_argument(ap)
@@ -119,6 +127,8 @@ def main() -> None:
     cds = args.center_distances
     if len(cds) < 2:
         ap.error("--center-distances: a sweep needs at least two")
+    if args.recording_seeds and (len(args.recording_seeds) != len(cds) or args.sweeps != 1):
+        ap.error("--recording-seeds: one seed per centre distance, with --sweeps 1")
     print(
         f"{rf.use_cpu_cores()} JAX device(s); seed {args.seed}; centre distances {cds} mm; "
         f"FitOptions overrides {overrides}"
@@ -127,6 +137,7 @@ def main() -> None:
     rows = []
     for n in range(args.sweeps):
         seeds = [int(s) for s in rng.integers(1 << 30, size=len(cds))]
+        seeds = args.recording_seeds or seeds
         fit_seed = int(rng.integers(1 << 30))
         if args.only and n + 1 not in args.only:
             continue
