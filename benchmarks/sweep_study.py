@@ -19,7 +19,8 @@ narrowest single one, and whether each holds the truth.
 
 `--refits R` fits each sweep R more times, each time with another fit seed (drawn from the
 sweep's own), the recordings unchanged: how much of a comparison is the fit's own chance
-(release states, starts, dither), not the data. It prints each interval's width over the fits.
+(release states, starts, dither), not the data. It prints each interval's width over the fits,
+their mean and spread (inf and nan where one reaches zero).
 
 Each sweep costs its singles and the joint fit. Measured in session 34 (2 cores): 151–338 s a
 sweep at 65.4 + 66.0 mm, 384–510 s at 65.0 + 65.4 mm and 399–587 s for three distances, the
@@ -98,7 +99,8 @@ def print_spread(rows: list[dict], cds) -> None:
     for k in SHARED:
         widths = np.array([[*r[k]["single_widths"], r[k]["joint_width"]] for r in rows])
         parts = [
-            f"{label} {', '.join(f'{w:.2f}' for w in col)} (sd {np.std(col, ddof=1):.2f})"
+            f"{label} {', '.join(f'{w:.2f}' for w in col)} "
+            f"(mean {np.mean(col):.2f}, sd {np.std(col, ddof=1):.2f})"
             for label, col in zip(labels, widths.T, strict=True)
         ]
         print(f"  {k} over {len(rows)} fit seeds: {'; '.join(parts)}", flush=True)
