@@ -11,7 +11,12 @@ lubrication, 10 % at 8 Hz by default; every recording with its own seed, printed
 identifies each recording alone and all of them jointly with the default `FitOptions`
 (fit seed: the sweep's), and reports for the shared parameters (`a`, `drag_torque`,
 `viscosity`) each interval's width in log, whether the joint one is narrower than the
-narrowest single one, and whether each holds the truth.
+narrowest single one, and whether each holds the truth. Beside each comparison it prints the
+singles' widths pooled (`pooled_width`: the width the joint interval would have if each
+recording's profile were a parabola and their information simply added), which says how much
+a joint fit should gain, roughly: little where one recording carries most of the information
+(rough profiles, cliffs and rival candidates make the singles wider than a parabola, so a joint
+fit can beat it).
 
     python benchmarks/sweep_study.py [--sweeps 6] [--seed 0] [--center-distances 65.0 65.4]
                                      [--only K ...] [--refits R] [--json out.json] [--quiet]
@@ -47,6 +52,15 @@ def log_width(q) -> float:
     return float(np.log(q.upper / q.lower)) if q.lower > 0 else float("inf")
 
 
+def pooled_width(widths) -> float:
+    """The joint interval's width if the recordings' information simply added: each profile a
+    parabola in log of the parameter, so a width w_i means a curvature ∝ 1/w_i², and the joint
+    curvature is their sum. An unbounded single interval (w_i = inf) adds nothing. What a joint
+    fit can gain at best, given the singles: little where one recording carries most of it."""
+    info = sum(1.0 / w**2 for w in widths if np.isfinite(w) and w > 0)
+    return float(info**-0.5) if info > 0 else float("inf")
+
+
 def study_sweep(args, overrides, n, cds, sweep, truth, seeds, fit_seed) -> dict:
     """Fit one sweep's recordings singly and jointly with one fit seed; its row, printed."""
 
@@ -75,13 +89,14 @@ def study_sweep(args, overrides, n, cds, sweep, truth, seeds, fit_seed) -> dict:
             "joint_width": log_width(js),
             "single_widths": w_single,
             "tighter": bool(log_width(js) < min(w_single)),
+            "pooled_width": pooled_width(w_single),
             "joint_covered": bool(js.lower <= value <= js.upper),
             "singles_covered": [bool(q.lower <= value <= q.upper) for q in ss],
         }
     row["wall_s"] = time.perf_counter() - t0
     parts = [
         f"{k} {row[k]['joint_width']:.2f} vs {min(row[k]['single_widths']):.2f}"
-        f"{' tighter' if row[k]['tighter'] else ''}"
+        f"{' tighter' if row[k]['tighter'] else ''} (pooled {row[k]['pooled_width']:.2f})"
         f"{'' if row[k]['joint_covered'] else ' (joint misses truth)'}"
         for k in SHARED
     ]
@@ -103,7 +118,12 @@ def print_spread(rows: list[dict], cds) -> None:
             f"(mean {np.mean(col):.2f}, sd {np.std(col, ddof=1):.2f})"
             for label, col in zip(labels, widths.T, strict=True)
         ]
-        print(f"  {k} over {len(rows)} fit seeds: {'; '.join(parts)}", flush=True)
+        pooled = pooled_width(np.mean(widths[:, :-1], axis=0))
+        print(
+            f"  {k} over {len(rows)} fit seeds: {'; '.join(parts)}; the singles' means pooled "
+            f"{pooled:.2f}",
+            flush=True,
+        )
 
 
 def main() -> None:
