@@ -69,10 +69,10 @@ def jitter_dcosts(problem, options, z, near, y0, dof_rec) -> np.ndarray:
 
 
 def sweep() -> list:
-    """The two recordings of ``test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque``."""
+    """The two recordings of sessions 22–35's joint-sweep test (65.0 and 65.4 mm)."""
     from rattlefit.synthetic import backlash_sweep
 
-    return [rec for rec, _ in backlash_sweep()]
+    return [rec for rec, _ in backlash_sweep((65.0, 65.4), (21, 22))]
 
 
 def main() -> None:

@@ -181,53 +181,30 @@ def test_dry_flanks_are_not_given_a_film():
 
 @pytest.mark.skipif(
     not os.environ.get("RATTLEFIT_SLOW"),
-    reason="three fits, 8–36 min on one JAX device; run with RATTLEFIT_SLOW=1. Session 18 "
-    "(seed 0, one device): passed in 1633 s beside other fits; joint T_b [0.0178, 0.0283] N m "
-    "(0.47 in log) against the singles' 1.43 (65.0 mm) and 1.32 (65.4 mm), the truth inside all "
-    "three",
+    reason="eight fits (two fit seeds × three singles and the joint), 25–30 min on one JAX "
+    "device beside another fit (session 36); run with RATTLEFIT_SLOW=1",
 )
-@pytest.mark.xfail(
-    strict=False,
-    reason="issue 3's joint criterion is not met in the typical sweep: over five seeded sweeps of "
-    "this kind (benchmarks/sweep_study.py, session 34) the joint T_b interval was narrower than "
-    "the narrowest single one in one, the median ratio about 1.3 (benchmarks/README, 'The joint "
-    "sweep's tightening over many sweeps'); and one fit seed's comparison is close to a coin "
-    "flip: three such sweeps (this one among them) refitted with four fit seeds each (session 35) "
-    "gave a joint T_b on average the narrowest on all three, but narrower than both singles of "
-    "its seed in 7 of 12 fits ('The joint comparison is the fit's own chance')",
-)
-def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
-    # Session 35 (one device, --runxfail, with a roughness allowance that removed slopes, since
-    # reverted): failed as in 33–34, joint T_b 0.300 in log against the 65.4 mm single's 0.171.
-    # An xfail (strict=False) from session 22 to 31 and again since session 34; it passed at
-    # every realisation from session 29 to 32 (with --runxfail, one device): 1086 s (session
-    # 29), 1257 s (30), 727 s (31, the stalling Levenberg–Marquardt), and 525 s in session 32
-    # (the velocity tolerance of rattlefit.simulate.STATE_SCALES), and failed in session 33.
-    # Session 34's study showed those passes to be the lucky realisations. Session 22 (seed 0, one
-    # device, 497 s) had failed it: joint T_b [0.0161, 0.0282] N m (0.56 in log) against the
-    # 65.4 mm single's [0.0224, 0.0277] (0.21), the truth inside all three: the joint cost's
-    # roughness near its optimum (rms 28 against a Monte Carlo 5) lifted its profile threshold
-    # to 50. Session 28 (2 devices): joint T_b 0.34 against 1.21 and unbounded. Session 33
-    # (one device; the Levenberg–Marquardt steps through the fit's one compiled program, a new
-    # realisation): failed, joint T_b 0.299 in log against the 65.4 mm single's 0.165–0.170.
-    # Session 22 (seed 0, 2 devices, so other realisations than here; benchmarks/README, "The
-    # backlash sweep at session 22's defaults"): with 8 LM steps in all the joint T_b interval (0.44
-    # in log) was wider than the 65.4 mm single's (0.29), its iterate unconverged with two lower
-    # rivals spanned; with the default since then, 8 steps per recording (16 here), joint T_b
-    # [0.0206, 0.0272] (0.27), the truth inside all three fits. Not re-run here on one device.
-    # Session 18 (seed 0, AVX2 cap, one device; rival candidates tested against the profile
-    # threshold): joint T_b [0.0178, 0.0283] (0.47 in log), singles [0.0074, 0.0310] (65.0 mm, 1.43)
-    # and [0.0130, 0.0488] (65.4 mm, 1.32). Only T_b is asserted: the joint a [54, 364] µm is barely
-    # narrower than the 65.0 mm single's [48, 365] (1.90 against 2.02 in log), and μ sits at its
-    # prior's width in all three fits (0.95 against the prior's 0.98), since the data trade it
-    # against a and h_min along a³μ/h_min². Every earlier session's result and why it failed or
-    # passed: benchmarks/README ("Dither bias", "Profile ends bisected", "Re-centred …", "Roughness
-    # allowance", "Rival candidates …"). The recurring obstacle is the mild regime's downward bias
-    # of T_b: with more LM steps (session 17) or re-centring (session 16) the joint T_b interval
-    # narrows to just below the truth.
-    # pair II, boundary, 10 % at 8 Hz at two centre distances: the backlash changes the
-    # rattle, not a, T_b or μ, so fitting both recordings together must narrow what they share
-    sweep = backlash_sweep()  # 65.0 and 65.4 mm
+def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque_on_average():
+    # Issue 3: "a joint fit of a backlash sweep must tighten the intervals compared with the
+    # single recordings". The paper's sweep (Figs. 10–12): pair II in boundary lubrication,
+    # 10 % at 8 Hz, at 65.0, 65.4 and 66.0 mm. The backlash changes the rattle, not a, T_b or
+    # μ, so fitting the recordings together must narrow what they share.
+    #
+    # Measured as a mean over fit seeds, not one fit's widths: one interval's width moves with
+    # the fit seed (release states, starts, dither) about as much as the recordings differ, so
+    # one seed's comparison is close to a coin flip (session 35; benchmarks/README, "The joint
+    # comparison is the fit's own chance"). Session 36 (one device, as here; benchmarks/README,
+    # "The paper's three distances, averaged over fit seeds"): T_b log widths 65.0, 65.4,
+    # 66.0 mm, joint: seed 0 2.07, unbounded, 0.94, 0.26; seed 1 0.30, 0.31, 0.63, 0.27; every
+    # interval held its truth. Only T_b is asserted: a boundary sweep pins μ·a³/h_min², not a
+    # or μ alone (the joint a 1.7 and 2.0 against the singles' 1.5–6.7), and μ stays at its
+    # prior's width.
+    #
+    # This test replaces session 22–35's one-seed comparison of the 65.0 and 65.4 mm recordings
+    # (an xfail): there the 65.0 mm recording locks into periodic orbits and carries a tenth of
+    # the 65.4 mm one's information about T_b, so a joint fit can narrow it by about 5 % at best
+    # (the singles' widths pooled), less than one fit seed's spread.
+    sweep = backlash_sweep()  # 65.0, 65.4 and 66.0 mm
     recs = [rec for rec, _ in sweep]
     truth = _truth_of(sweep[0][1])
 
@@ -235,12 +212,15 @@ def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque():
         q = result.parameters[name]
         return np.log(q.upper / q.lower) if q.lower > 0 else np.inf
 
-    singles = [identify([r], FitOptions(seed=0)) for r in recs]
-    joint = identify(recs, FitOptions(seed=0))
-    assert all(_covered(joint, truth).values()), joint.parameters
-    assert set(joint.parameters) >= {"backlash[0]", "backlash[1]"}
-    w_single = min(width(r, "drag_torque") for r in singles)
-    assert width(joint, "drag_torque") < w_single, (joint.parameters, singles)
+    widths = []  # per fit seed: the singles' T_b widths, then the joint one's
+    for seed in (0, 1):
+        singles = [identify([r], FitOptions(seed=seed)) for r in recs]
+        joint = identify(recs, FitOptions(seed=seed))
+        assert all(_covered(joint, truth).values()), (seed, joint.parameters)
+        assert {f"backlash[{i}]" for i in range(len(recs))} <= set(joint.parameters)
+        widths.append([width(f, "drag_torque") for f in (*singles, joint)])
+    mean = np.mean(widths, axis=0)
+    assert mean[-1] < np.min(mean[:-1]), widths
 
 
 # the independent simulator's files whose truth lists no extra effects (all five)

@@ -123,8 +123,8 @@ def synthesize(
 
 
 def backlash_sweep(
-    center_distances_mm: Sequence[float] = (65.0, 65.4),
-    seeds: Sequence[int] = (21, 22),
+    center_distances_mm: Sequence[float] = (65.0, 65.4, 66.0),
+    seeds: Sequence[int] = (21, 22, 23),
     *,
     pair: str = "II",
     operating: OperatingPoint | None = None,
@@ -136,8 +136,9 @@ def backlash_sweep(
     one recording per centre distance (mm), each with its own ``seed``, and the parameters it
     was simulated with (the film half-length ``a`` in m, the drag torque in N m and the
     viscosity in Pa s shared; the backlash the centre distance's). The defaults are the sweep
-    of issue 3's joint-fit criterion: pair II in boundary lubrication at 20 °C, 10 % speed
-    fluctuation at 8 Hz."""
+    of issue 3's joint-fit criterion (tests/test_fit.py): pair II in boundary lubrication at
+    20 °C, 10 % speed fluctuation at 8 Hz, at the ends and the middle of the paper's range of
+    centre distances."""
     if len(center_distances_mm) != len(seeds):
         raise RattlefitError(
             f"backlash_sweep: {len(seeds)} seed(s) for {len(center_distances_mm)} centre "
