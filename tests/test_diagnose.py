@@ -57,7 +57,10 @@ def test_diagnose_names_withheld_flank_friction_and_sizes_it(tmp_path):
     # friction 1255 → 1037, μ_f 0.046); with dry starts at more drag (FREE_FACTORS) friction
     # is the verdict, 1255 → 840 (p 0.0011, μ_f 0.11), run-out close behind (→ 850, p 0.0063
     # against the 0.0033 needed): a narrow margin, recorded here so that a change is read
-    # against it (README "diagnose": the friction's basin is narrow).
+    # against it (README "diagnose": the friction's basin is narrow). Session 36 (an Intel
+    # Xeon with AVX-512, one device): failed with the effect sizes screened at half decades
+    # (best start μ_f 0.316, χ² 251.9 → 493.8 out of sample, no verdict); passes with quarter
+    # decades (μ_f 0.178, χ² 251.9 → 45.8, p 1.7e-11).
     rec, truth = _dry_pair2([fx.FlankFriction(coefficient=0.2)])
     path = tmp_path / "dry_friction.h5"
     write_recording(rec, path, extra_attrs=truth)
