@@ -21,7 +21,7 @@ short of the minimum, a kink where a regime's share changes) they repeat. It pri
 Δcosts, then their mean and spread over the four sets.
 
     python benchmarks/roughness.py [--recording pairII_boundary_65.0_10pct_8Hz] [--seed 0]
-    python benchmarks/roughness.py --sweep     # the joint fit of tests/test_fit.py's sweep
+    python benchmarks/roughness.py --sweep     # the joint fit of the 65.0 + 65.4 mm sweep
 
 About 2 minutes on 2 cores (session 27, an EPYC without AVX-512, cache warm). Results are in
 benchmarks/README.md ("The roughness allowance measures structure, not noise").
@@ -82,8 +82,8 @@ def main() -> None:
     ap.add_argument(
         "--sweep",
         action="store_true",
-        help="instead, the synthetic backlash sweep of tests/test_fit.py (pair II, boundary, "
-        "10 %% at 8 Hz, 65.0 and 65.4 mm), fitted jointly",
+        help="instead, the synthetic backlash sweep of sessions 22–35's joint-fit test (pair II, "
+        "boundary, 10 %% at 8 Hz, 65.0 and 65.4 mm), fitted jointly",
     )
     args = ap.parse_args()
     recs = sweep() if args.sweep else [read_recording(RECORDINGS / f"{args.recording}.h5")]
