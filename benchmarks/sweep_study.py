@@ -55,8 +55,8 @@ def log_width(q) -> float:
 def pooled_width(widths) -> float:
     """The joint interval's width if the recordings' information simply added: each profile a
     parabola in log of the parameter, so a width w_i means a curvature ∝ 1/w_i², and the joint
-    curvature is their sum. An unbounded single interval (w_i = inf) adds nothing. What a joint
-    fit can gain at best, given the singles: little where one recording carries most of it."""
+    curvature is their sum. An unbounded single interval (w_i = inf) adds nothing. Roughly what
+    a joint fit should gain, given the singles: little where one recording carries most of it."""
     info = sum(1.0 / w**2 for w in widths if np.isfinite(w) and w > 0)
     return float(info**-0.5) if info > 0 else float("inf")
 
@@ -139,7 +139,8 @@ def main() -> None:
         nargs="+",
         metavar="S",
         help="one sweep of these recording seeds (one per centre distance) instead of drawn ones, "
-        "e.g. 21 22 for tests/test_fit.py's; the fit seed is still drawn",
+        "e.g. 21 22 23 for tests/test_fit.py's (with --center-distances 65.0 65.4 66.0); the fit "
+        "seed is still drawn",
     )
     ap.add_argument("--json")
     ap.add_argument("--quiet", action="store_true", help="print results, not identify's progress")
