@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import rattlefit as rf
-from rattlefit.model import squeeze_coefficient
+from rattlefit.model import equivalent_viscosity, squeeze_coefficient
 
 STILL = rf.Drive(0.0, 8.0, [0.0], [0.0])  # θ1 ≡ 0: no forcing, frozen mesh stiffness
 
@@ -85,6 +85,21 @@ def test_squeeze_coefficient_limits():
     assert float(hi) == pytest.approx(float(lo), rel=1e-6)
     grad = jax.grad(lambda a: squeeze_coefficient(50e-6, a, mu, R, Z))(0.0)
     assert np.isfinite(grad)
+
+
+def test_equivalent_viscosity_keeps_the_squeeze_coefficient_in_both_film_limits():
+    R, mu = 5e-3, 0.5
+    h = np.array([5e-6, 50e-6, 500e-6])
+    # short films both (S ∝ μ a³): μ' = μ (a/a')³
+    np.testing.assert_allclose(equivalent_viscosity(h, 1e-7, mu, 2e-7, R), mu / 8, rtol=1e-3)
+    # long films both (S independent of a): μ' = μ
+    np.testing.assert_allclose(equivalent_viscosity(h, 10.0, mu, 20.0, R), mu, rtol=1e-3)
+    # a short film made long: μ' 8 a³/h³ = (3π/2) μ' R^{3/2} h^{-3/2} … = μ 8 a³/h³
+    short = 8 * 1e-7**3 / h**3
+    long = 1.5 * np.pi * R**1.5 * h**-1.5
+    np.testing.assert_allclose(
+        equivalent_viscosity(h, 1e-7, mu, 10.0, R), mu * short / long, rtol=1e-3
+    )
 
 
 def test_mesh_mode_frequency(pair2):

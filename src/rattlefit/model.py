@@ -222,6 +222,22 @@ def squeeze_coefficient(h, a, viscosity, radius, width):
     return 3.0 * viscosity * width * radius**3 * g / (root * root * root)
 
 
+def equivalent_viscosity(h, a, viscosity, a_new, radius):
+    """The viscosity (Pa s, or a factor on it) with which film half-length ``a_new`` (m)
+    gives the squeeze coefficient that ``a`` and ``viscosity`` give at gap ``h`` (m).
+
+    S is proportional to μ (eq. 5), so this is ``viscosity · S(h; a) / S(h; a_new)``; the
+    flank width cancels. Where the film saturates (a ≫ √(R h)) the ratio tends to one, and a
+    long film trades against the viscosity only through the gaps where it does not: the
+    valley that a fit under oil jet follows in (a, μ) (:func:`rattlefit.fit.identify`).
+    """
+    return (
+        viscosity
+        * squeeze_coefficient(h, a, 1.0, radius, 1.0)
+        / squeeze_coefficient(h, a_new, 1.0, radius, 1.0)
+    )
+
+
 class Effect(eqx.Module):
     """An extra physical effect outside the seed paper's model (the plug-in contract).
 
