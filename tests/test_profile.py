@@ -231,6 +231,51 @@ def test_continuation_follows_a_bent_valley_that_the_straight_scan_leaves():
     assert n <= 4 and hi == pytest.approx(exact, abs=0.1) and lo == pytest.approx(-exact, abs=0.1)
 
 
+def _wavy_cliff_valley(points):
+    # z0 profiled, z1 a nuisance: the valley floor z1 = 2 sin 3 z0 is 0.02 wide and turns
+    # three times over the interval; off it the cost saturates at 30² with no slope (as where
+    # rattle leaves the recording's regime, the oil-jet pocket of identify's film valley). On
+    # the floor the profile of z0 is z0², so its 95 % ends are ±√3.84.
+    z0, z1 = np.asarray(points).T
+    return np.stack([30 * np.tanh((z1 - 2 * np.sin(3 * z0)) / 0.02), z0], axis=1)
+
+
+@pytest.mark.parametrize("known", [False, True])
+def test_a_valley_the_physics_knows_gives_the_profile_its_whole_interval(known):
+    def delta(points):
+        return np.sum(_wavy_cliff_valley(points) ** 2, axis=1)
+
+    def polish(starts, fixed):
+        return polish_profile(_wavy_cliff_valley, starts, fixed, np.full(starts.shape, 1e-4))
+
+    calls = []
+
+    def valley(i, near, t):
+        calls.append((i, np.array(near), t))
+        return [np.array([t, 2 * np.sin(3 * t)])]
+
+    hook = valley if known else None
+    threshold, exact = 3.84, np.sqrt(3.84)
+    z = np.zeros(2)
+    cov = np.array([[0.1**2, 0.06], [0.06, 0.36 + 1e-4]])  # the floor's tangent at 0: z1 = 6 z0
+    profiles = {0: {0.0: (0.0, z)}}
+    # as profile_scan: coarse values over the range, and ±1, 2 Laplace sd
+    for t in (-8.0, -3.0, -1.0, -0.5, -0.2, -0.1, 0.1, 0.2, 0.5, 1.0, 3.0, 8.0):
+        for g in profile_guesses(z, cov, 0, t, valley=hook):
+            keep_lower(profiles[0], t, float(delta(g[None])[0]), g)
+    bisect_profile_ends(profiles, threshold, z, cov, delta, rounds=8, valley=hook)
+    continue_profiles(profiles, threshold, delta, polish, lambda i, t: 0.25, rounds=4, valley=hook)
+    bisect_profile_ends(profiles, threshold, z, cov, delta, rounds=8, valley=hook)
+    (lo, hi), _ = profile_interval(profiles[0], threshold)
+    if known:
+        assert hi == pytest.approx(exact, abs=0.05) and lo == pytest.approx(-exact, abs=0.05)
+        # the hook saw the profiled index, the point it started from, and the new value
+        assert all(i == 0 and near.shape == (2,) for i, near, _ in calls)
+    else:
+        # the straight paths and the secant leave a floor this narrow and wavy at once
+        assert hi < 0.1 * exact and lo > -0.1 * exact
+
+
 def test_a_profile_clearly_below_the_optimum_is_where_the_fit_starts_again():
     # a Levenberg–Marquardt run stopped at t = 0.3 of a cost 100 (t − 0.5)²: relative to its
     # cost the profile dips to −4 at 0.5 (scanned with the other parameter moved there)

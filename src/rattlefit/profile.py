@@ -31,6 +31,11 @@ import numpy as np
 
 from .parameters import Z_END
 
+#: More guesses for the other parameters at a profile value: ``valley(i, near, t)`` returns
+#: points with parameter i at t where the model's physics puts the valley of the cost that
+#: passes through ``near`` (:func:`profile_guesses`).
+Valley = Callable[[int, np.ndarray, float], list[np.ndarray]]
+
 #: The standard normal's 97.5 % quantile: a two-sided 95 % interval is ±Z95 σ.
 Z95 = 1.959963984540054
 CHI2_1_95 = Z95**2  # 95 % quantile of χ² with one degree of freedom
@@ -92,7 +97,7 @@ def jitter_noise(jitter_costs) -> float:
     return float(np.sqrt(np.mean(np.var(costs, axis=0, ddof=1))))
 
 
-def profile_scan(specs: Sequence, z, cov, profile_costs) -> dict:
+def profile_scan(specs: Sequence, z, cov, profile_costs, *, valley: Valley | None = None) -> dict:
     """Cost profiles of the free parameters over their whole range.
 
     The Laplace interval is local and Gaussian, and rattle's cost is neither: a weak film is
@@ -103,7 +108,8 @@ def profile_scan(specs: Sequence, z, cov, profile_costs) -> dict:
     (:data:`SCAN_OFFSETS`). At each value the other parameters are set two ways — kept at the
     optimum, and moved along the Laplace profile path ``z + Σ[:, i]/Σ_ii · (t − z_i)`` — and
     the lower cost stands for the profile (:func:`polish_profile` then re-optimises the
-    values that decide the interval's ends). Every point is simulated in one batch
+    values that decide the interval's ends); ``valley`` adds the guesses the model's physics
+    makes (:func:`profile_guesses`). Every point is simulated in one batch
     (:class:`ProfileCosts`, common random numbers with the optimum), so the costs are
     comparable.
 
@@ -119,7 +125,7 @@ def profile_scan(specs: Sequence, z, cov, profile_costs) -> dict:
         ts = {spec.z_of(spec.lower * (spec.upper / spec.lower) ** f) for f in SCAN_FRACTIONS}
         ts |= {z[i] + o * sd for o in SCAN_OFFSETS if sd < Z_END}
         for t in sorted(float(np.clip(t, -Z_END, Z_END)) for t in ts):
-            guesses = profile_guesses(z, cov, i, t)
+            guesses = profile_guesses(z, cov, i, t, valley=valley)
             zs += guesses
             owners += [(i, t)] * len(guesses)
     if not owners:
@@ -254,23 +260,48 @@ class ProfileCosts:
         return n
 
 
-def profile_guesses(z, cov, i: int, t: float, near=None) -> list[np.ndarray]:
+def profile_guesses(
+    z, cov, i: int, t: float, near=None, *, valley: Valley | None = None
+) -> list[np.ndarray]:
     """Where to put the other parameters when parameter ``i`` is held at ``t``: as at the
     point ``near`` (default: the optimum ``z``; in a bisection, the value inside), and moved
     from the optimum along the Laplace profile path ``z + Σ[:, i]/Σ_ii · (t − z_i)``. Where
     the two nearly coincide (an uncorrelated parameter, or a value close to the optimum)
-    they are one point, simulated once."""
+    they are one point, simulated once.
+
+    ``valley(i, near, t)`` adds points on a valley that the model's physics knows and that
+    neither straight path follows (:data:`Valley`; in a fit, the film half-length traded
+    against the viscosity, :func:`rattlefit.fit.identify`); a guess within
+    :data:`SCAN_SAME` of one already made is dropped.
+    """
     z = np.asarray(z, dtype=float)
     beta = np.clip(cov[:, i] / cov[i, i], -10, 10) if cov[i, i] > 0 else np.zeros_like(z)
-    kept = (z if near is None else np.asarray(near, dtype=float)).copy()
+    base = z if near is None else np.asarray(near, dtype=float)
+    kept = base.copy()
     kept[i] = t
     moved = np.clip(z + beta * (t - z[i]), -Z_END, Z_END)
     moved[i] = t
-    return [kept] if np.max(np.abs(moved - kept)) < SCAN_SAME else [kept, moved]
+    return _distinct([kept, moved, *(valley(i, base, t) if valley is not None else [])])
+
+
+def _distinct(points) -> list[np.ndarray]:
+    """``points`` in order, less each within :data:`SCAN_SAME` (in z) of one before it."""
+    kept: list[np.ndarray] = []
+    for g in points:
+        if all(np.max(np.abs(g - h)) >= SCAN_SAME for h in kept):
+            kept.append(np.asarray(g, dtype=float))
+    return kept
 
 
 def bisect_profile_ends(
-    profiles: dict, threshold: float, z, cov, cost_of_points, *, rounds: int
+    profiles: dict,
+    threshold: float,
+    z,
+    cov,
+    cost_of_points,
+    *,
+    rounds: int,
+    valley: Valley | None = None,
 ) -> int:
     """Narrow the bracket of each profile interval's ends by bisection, in place.
 
@@ -287,7 +318,8 @@ def bisect_profile_ends(
     cost standing. One guess is not enough: where the valley bends (``a`` against ``h_min``
     in mild rattle) the value inside's overstates the profile, and bisection then ends the
     interval early (measured on the mild synthetic file of tests/test_fit.py: ``a``
-    [108, 159] µm against the true 85 µm with it alone, [80, 205] µm with both).
+    [108, 159] µm against the true 85 µm with it alone, [80, 205] µm with both). ``valley``
+    adds the guesses the model's physics makes (:func:`profile_guesses`).
 
     ``cost_of_points`` maps points (N, P) to their costs above the optimum's (N,). Returns
     the number of points evaluated.
@@ -301,7 +333,8 @@ def bisect_profile_ends(
             for t_in, t_out in brackets:
                 if abs(t_out - t_in) > width:
                     t = 0.5 * (t_in + t_out)
-                    todo += [(i, t, g) for g in profile_guesses(z, cov, i, t, prof[t_in][1])]
+                    guesses = profile_guesses(z, cov, i, t, prof[t_in][1], valley=valley)
+                    todo += [(i, t, g) for g in guesses]
         if not todo:
             break
         costs = cost_of_points(np.stack([g for _, _, g in todo]))
@@ -319,6 +352,7 @@ def continue_profiles(
     step: Callable[[int, float], float],
     *,
     rounds: int,
+    valley: Valley | None = None,
 ) -> int:
     """Follow each profile past its interval's ends by continuation, in place.
 
@@ -329,8 +363,10 @@ def continue_profiles(
     end, or after ``rounds``). The other parameters start from two predictions, as at the
     value inside and along the secant through it and the nearest value inside at least half
     a step further in (a predictor–corrector continuation), and are re-optimised by
-    ``polish(points, fixed)`` with parameter i held; ``cost_of_points`` maps points (N, P)
-    to their Δcost, all of a round in one batch.
+    ``polish(points, fixed)`` with parameter i held; the guesses of ``valley``
+    (:func:`profile_guesses`) are costed as they are, since they already follow the valley
+    that the secant leaves. ``cost_of_points`` maps points (N, P) to their Δcost, all of a
+    round in one batch.
 
     The scan's straight paths leave a valley that bends (``a`` against the viscosity under
     oil jet, where the squeeze force saturates in ``a``); a continuation follows it as far
@@ -340,7 +376,7 @@ def continue_profiles(
     stopped: set[tuple[int, int]] = set()
     n_points = 0
     for _ in range(rounds):
-        todo = []
+        todo, on_valley = [], []  # polished first; the valley's guesses are its own
         for i, prof in profiles.items():
             for t_in, t_out in profile_interval(prof, threshold)[1]:
                 side = 1 if t_out > t_in else -1
@@ -367,12 +403,14 @@ def continue_profiles(
                     guesses.append(np.clip(z_in + slope * (t_new - t_in), -Z_END, Z_END))
                 for g in guesses:
                     g[i] = t_new
-                if len(guesses) == 2 and np.max(np.abs(guesses[1] - guesses[0])) < SCAN_SAME:
-                    guesses.pop()
-                todo += [(key, t_new, g) for g in guesses]
+                todo += [(key, t_new, g) for g in _distinct(guesses)]
+                if valley is not None:
+                    on_valley += [(key, t_new, g) for g in valley(i, z_in, t_new)]
         if not todo:
             break
         ends = polish(np.stack([g for _, _, g in todo]), [key[0] for key, _, _ in todo])
+        todo += on_valley
+        ends = np.concatenate([ends, *(g[None] for _, _, g in on_valley)])
         costs = cost_of_points(ends)
         n_points += len(todo)
         best: dict[tuple[int, int], float] = {}
