@@ -69,7 +69,13 @@ from . import ensemble
 from ._util import array_namespace, stamped
 from .ensemble import chaotic_part, ensemble_mean, regime_weights, shrunk_correlation
 from .errors import RattlefitError
-from .model import Effect, RattleModel, RattleParams, share_stiffness_tables
+from .model import (
+    Effect,
+    RattleModel,
+    RattleParams,
+    equivalent_viscosity,
+    share_stiffness_tables,
+)
 from .parallel import map_blocks
 from .parameters import (
     Z_END,
@@ -280,6 +286,22 @@ class FitOptions:
         without it, now reports ``a`` [0.043, 5] mm, ``drag_torque`` [0.0048, 0.094] N m and
         μ [0.22, 0.58] Pa s: a poor fit that says so in its intervals too, all three truths
         inside. The mild shared file's identify takes 82–87 s instead of 61–63 s.
+    profile_valley : give the profile stage (scan, bisection and continuation) more guesses
+        for the other parameters at each value of a film half-length: the viscosity factor
+        that keeps the squeeze coefficient unchanged at a few gaps near contact
+        (:data:`VALLEY_GAPS`, :func:`_film_valley`). Under oil jet the squeeze force
+        saturates in ``a`` near contact but not at the larger gaps, so ``a`` trades against
+        the viscosity along a curved valley, and where the recording's regime is reached only
+        in a narrow pocket the cost off it is in the thousands: neither the scan's straight
+        paths nor the continuation's secant and polish stay in it. On by default since
+        session 37, measured on the independent simulator's pair II oil-jet file (65.6 mm,
+        20 % at 16 Hz, a flagged poor fit, χ² 92.6 on 28, seed 0, one device, on an AVX-512
+        Xeon): without it ``a`` [0.119, 0.854] mm missed the true 1 mm, the cost jumping from
+        10 below the optimum's to 50 above between 0.82 and 0.91 mm; along the valley it
+        stays 10–20 below the optimum's up to 5 mm (benchmarks/README, "The oil-jet film
+        traded against the viscosity"), and the fit reports ``a ≥ 0.155`` mm, in 72 s
+        against 94 s (fewer continuation points). The coverage study (seed 0) held 27/30
+        with it as without.
     profile_roughness : widen the profile threshold's noise allowance to the measured spread
         of the cost at :data:`PROFILE_JITTER` steps from the optimum (in z, 1–2 % of the
         parameter), when that exceeds the analytic Monte Carlo allowance
@@ -397,6 +419,7 @@ class FitOptions:
     polish_iterations: int = 1
     profile_bisections: int = 4
     profile_continuation: int = 4
+    profile_valley: bool = True
     profile_roughness: bool = True
     roughness_sets: int = 1
     profile_screen: int = 6
@@ -436,12 +459,14 @@ class FitOptions:
         roughness allowance or re-centring): the Levenberg–Marquardt optimum and noise model
         of the defaults, with intervals from the scan alone, for callers that need the
         optimum and not the intervals (:func:`rattlefit.diagnose.diagnose`, which re-fits a
-        and T_b itself). Measured (session 16, joint fit of a backlash sweep): the bisection
-        and the polish took 200 of the 645 s to the end of the first profile stage."""
+        and T_b itself); the scan makes no ``profile_valley`` guesses. Measured (session
+        16, joint fit of a backlash sweep): the bisection and the polish took 200 of the
+        645 s to the end of the first profile stage."""
         preset = dict(
             profile_rounds=0,
             profile_bisections=0,
             profile_continuation=0,
+            profile_valley=False,
             profile_roughness=False,
             recentre_rounds=0,
         )
@@ -1107,6 +1132,53 @@ def _debiased_information(j_data: np.ndarray, noise: np.ndarray, j_prior: np.nda
 MIN_INFORMATION = 1e-6
 
 
+#: The gaps, in multiples of ``h_min``, at which :func:`_film_valley` keeps the squeeze
+#: coefficient while a film half-length moves along its profile (one guess each). Measured on
+#: the independent simulator's pair II oil-jet file (session 37, benchmarks/README, "The
+#: oil-jet film traded against the viscosity"): from the optimum (a 0.35 mm, h_min 2.1 µm)
+#: the valley ran to 5 mm keeping S at 3 h_min (at 2 h_min to 1 mm only, at 4 near the
+#: threshold), from the last profile point inside (a 0.82 mm, h_min 3.1 µm) at 6–8 h_min (at
+#: 4 to 1.5 mm); at 1.5 h_min from either, and at 6–8 from the optimum, the cost was
+#: 150–5600 above the optimum's. Which gap the data pin moves with the other parameters, so a
+#: few are tried, about a factor 1.5 apart. They made a cold identify of the mild shared
+#: file 1.25× as long (33 s against 26–28 s, most of it in the continuation); three gaps
+#: (2, 3.5, 6) saved nothing, the batches being padded to whole compiled chunks.
+VALLEY_GAPS = (2.0, 3.0, 4.5, 7.0)
+
+
+def _film_valley(problem: _Problem):
+    """The :data:`~rattlefit.profile.Valley` of the film half-lengths: at a new value of a
+    film's ``a``, the viscosity factor that keeps the squeeze coefficient unchanged at each
+    gap of :data:`VALLEY_GAPS` × ``h_min`` (:func:`~rattlefit.model.equivalent_viscosity`,
+    with the curvature radius of that film's first recording), where it stays inside its
+    range. Other parameters get no guesses."""
+    specs = problem.specs
+    names = [s.name for s in specs]
+    if "viscosity_scale" not in names or "min_film" not in names:
+        return None
+    i_mu, i_h = names.index("viscosity_scale"), names.index("min_film")
+    radii = np.asarray(problem.models.curvature_radius).reshape(-1)
+    radius = {name: float(radii[problem.films.index(name)]) for name in set(problem.films)}
+    mu_spec = specs[i_mu]
+
+    def valley(i: int, near, t: float) -> list[np.ndarray]:
+        spec = specs[i]
+        if spec.name not in radius:
+            return []
+        a, a_new = float(spec.value(near[i])), float(spec.value(t))
+        mu, h_min = float(mu_spec.value(near[i_mu])), float(specs[i_h].value(near[i_h]))
+        points = []
+        for factor in VALLEY_GAPS:
+            mu_new = float(equivalent_viscosity(factor * h_min, a, mu, a_new, radius[spec.name]))
+            if mu_spec.lower < mu_new < mu_spec.upper:
+                point = np.array(near, dtype=float)
+                point[i], point[i_mu] = t, mu_spec.z_of(mu_new)
+                points.append(point)
+        return points
+
+    return valley
+
+
 def _build(
     recordings: Sequence[Recording], options: FitOptions, rng
 ) -> tuple[_Problem, list[RigSetup]]:
@@ -1454,6 +1526,7 @@ def identify(
 
     refined = _refine_starts(problem, starts, options, rng, say)
     problem, z, contenders = refined.problem, refined.optimum, refined.contenders
+    valley = _film_valley(problem) if options.profile_valley else None
     n_iter, converged, sigma = refined.n_iter, refined.converged, problem.sigma
 
     # the Laplace stage uses more realisations than the fit, released from fresh states
@@ -1498,7 +1571,13 @@ def identify(
 
     def bisect_ends(profiles, threshold, zk, cov, profile_costs):
         n = bisect_profile_ends(
-            profiles, threshold, zk, cov, profile_costs, rounds=options.profile_bisections
+            profiles,
+            threshold,
+            zk,
+            cov,
+            profile_costs,
+            rounds=options.profile_bisections,
+            valley=valley,
         )
         profile_costs.complete_ends(profiles, threshold)
         if n:
@@ -1599,7 +1678,7 @@ def identify(
                 f"(Δcost rms {profile_costs.noise:.1f} with {options.profile_screen} near the "
                 "optimum)"
             )
-        profiles = profile_scan(specs, z, cov, profile_costs)
+        profiles = profile_scan(specs, z, cov, profile_costs, valley=valley)
         rivals = admit_rivals(profiles, others, dcost_near[len(jitter) :], threshold)
         profile_costs.complete_ends(profiles, threshold)
         if others:
@@ -1643,6 +1722,7 @@ def identify(
                 polish,
                 lambda i, t: CONTINUATION_LOG_STEP / float(specs[i].dlog_dz(t)),
                 rounds=options.profile_continuation,
+                valley=valley,
             )
             say(f"  {n_cont} continuation point(s)")
             bisect_ends(profiles, threshold, z, cov, profile_costs)
