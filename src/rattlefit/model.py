@@ -42,7 +42,7 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 from scipy import special
 
-from ._util import concrete
+from ._util import array_namespace, concrete
 from .drive import Drive
 from .elementary import arctan
 from .errors import ParameterError
@@ -211,14 +211,16 @@ def squeeze_coefficient(h, a, viscosity, radius, width):
     """
     # one square root serves y and R^{3/2} h^{-3/2} = R³ / (R h)^{3/2}: the power h^{-1.5} (a log
     # and an exp) made the squeeze force a fifth of a lockstep step's time (benchmarks/README,
-    # session 29)
-    root = jnp.sqrt(radius * h)
+    # session 29). Outside a trace (a fit's host side: equivalent_viscosity) it is numpy.
+    xp = array_namespace(h, a, viscosity, radius, width)
+    atan = arctan if xp is jnp else np.arctan
+    root = xp.sqrt(radius * h)
     y = a / root
     small = y < 1e-2
-    ys = jnp.where(small, 0.5, y)  # keep the unused branch finite (and its gradient)
-    g_full = arctan(ys) + ys * (ys**2 - 1.0) / (1.0 + ys**2) ** 2
+    ys = xp.where(small, 0.5, y)  # keep the unused branch finite (and its gradient)
+    g_full = atan(ys) + ys * (ys**2 - 1.0) / (1.0 + ys**2) ** 2
     g_series = (8.0 / 3.0) * y**3 * (1.0 - 1.8 * y**2 + (18.0 / 7.0) * y**4)
-    g = jnp.where(small, g_series, g_full)
+    g = xp.where(small, g_series, g_full)
     return 3.0 * viscosity * width * radius**3 * g / (root * root * root)
 
 
