@@ -8,7 +8,7 @@ import dataclasses
 import json
 import os
 
-from rattlefit.fit import FitOptions
+from rattlefit.inference.fit import FitOptions
 
 
 def add_set_argument(ap: argparse.ArgumentParser) -> None:

@@ -1,7 +1,7 @@
 """Coverage study of `identify` on synthetic recordings over the paper's operating grid.
 
 For a seeded sample of (pair, lubrication, centre distance, fluctuation, frequency), this
-simulates a recording with known truth (`rattlefit.synthetic.synthesize`), identifies it with
+simulates a recording with known truth (`rattlefit.simulation.synthetic.synthesize`), identifies it with
 the default `FitOptions`, and reports whether each 95 % interval holds the truth and whether the
 fit called `a` identified. Issue 3's check: truth inside the interval in ≥ 90 % of cases, and
 `a` within 20 % where reported identified.
@@ -33,11 +33,11 @@ import numpy as np
 
 import rattlefit as rf
 from _study import add_set_argument, set_overrides, write_json
-from rattlefit.fit import FitOptions, identify
-from rattlefit.oil import dynamic_viscosity
-from rattlefit.parameters import film_names, parse_prior
-from rattlefit.recording import OperatingPoint
-from rattlefit.synthetic import synthesize
+from rattlefit.inference.fit import FitOptions, identify
+from rattlefit.inference.parameters import film_names, parse_prior
+from rattlefit.io.recording import OperatingPoint
+from rattlefit.physics.oil import dynamic_viscosity
+from rattlefit.simulation.synthetic import synthesize
 
 LUBRICATION = {"dry": (0.0, 20.0), "boundary": (0.085e-3, 20.0), "oil_jet": (1.0e-3, 25.0)}
 DRAG = {"I": 0.03, "II": 0.025}
@@ -77,7 +77,7 @@ def main() -> None:
         action="append",
         default=[],
         metavar="NAME=CENTER:LOG_SD",
-        help="replace a nuisance's prior (rattlefit.parameters.parse_prior), e.g. "
+        help="replace a nuisance's prior (rattlefit.inference.parameters.parse_prior), e.g. "
         "min_film=2e-6:0.1",
     )
     args = ap.parse_args()

@@ -7,7 +7,7 @@ study measures, at the truth of the joint-fit test's backlash sweep (pair II, bo
 at 8 Hz), the gap between
 
 * E[data]: the mean features of `--realisations` undithered realisations made the way
-  `rattlefit.synthetic.synthesize` makes a recording (commanded drive, rtol 1e-7, nothing set
+  `rattlefit.simulation.synthetic.synthesize` makes a recording (commanded drive, rtol 1e-7, nothing set
   aside), and
 * the fit's mean features (measured drive, the fit's rtol, regimes set aside) with each dither,
 
@@ -28,10 +28,10 @@ import time
 import numpy as np
 
 import rattlefit as rf
-from rattlefit.ensemble import ensemble_mean
-from rattlefit.fit import FitOptions, _build, _evaluate
-from rattlefit.recording import OperatingPoint
-from rattlefit.synthetic import synthesize
+from rattlefit.features.ensemble import ensemble_mean
+from rattlefit.inference.fit import FitOptions, _build, _evaluate
+from rattlefit.io.recording import OperatingPoint
+from rattlefit.simulation.synthetic import synthesize
 
 TRUTH = {"a": 0.085e-3, "drag_torque": 0.025, "viscosity": 0.4942}
 

@@ -3,8 +3,8 @@
 On a CPU XLA compiles ``jnp.sin``, ``jnp.cos`` and ``jnp.arctan`` to one library call per
 value, and a small batched ``einsum`` to a matrix-product library call; sums and products of a
 batch become vector instructions. Since session 30 the drive's sine and cosine and the squeeze
-film's arctangent are polynomials (:mod:`rattlefit.elementary`) and the integrator's dense output
-is Horner's rule (:func:`rattlefit.integrate._dense_output`). This times each pair in one
+film's arctangent are polynomials (:mod:`rattlefit.physics.elementary`) and the integrator's dense output
+is Horner's rule (:func:`rattlefit.simulation.lockstep._dense_output`). This times each pair in one
 process, alternating, as a loop of 20k dependent iterations over a batch of ``--rows`` values
 (the fit's 24 rows a device, and a wide batch for the throughput), and reports ns per value and
 iteration and the ratio new / library. Nothing asserts a time; pin it to one core
@@ -34,8 +34,8 @@ def main(argv=None) -> int:
     import jax
     import jax.numpy as jnp
 
-    from rattlefit.elementary import arctan, sin_cos_cycles
-    from rattlefit.integrate import _dense_output
+    from rattlefit.physics.elementary import arctan, sin_cos_cycles
+    from rattlefit.simulation.lockstep import _dense_output
 
     def weights(s):  # diffrax's factored Tsit5 interpolant, as the integrator had it
         s2 = s * s

@@ -26,8 +26,8 @@ CHILD = """
 import hashlib, json, time
 import numpy as np
 import rattlefit as rf
-from rattlefit.recording import OperatingPoint
-from rattlefit.synthetic import synthesize
+from rattlefit.io.recording import OperatingPoint
+from rattlefit.simulation.synthetic import synthesize
 g = rf.table2_pair("II", center_distance_mm=65.0)
 op = OperatingPoint("boundary", 20.0, 52.36, 5.236, 8.0)
 p = rf.RattleParams(0.085e-3, 0.025, 0.4942, g.backlash)
@@ -40,8 +40,8 @@ steady = time.perf_counter() - t0
 counts = np.asarray(rec.secondary)
 # the fit's workload: 16 members in one lockstep batch (rtol 1e-6, as the fit simulates)
 import jax.numpy as jnp
-from rattlefit import rig
-from rattlefit.simulate import broadcast_params, simulate_batch
+from rattlefit.inference import rig
+from rattlefit.simulation.solve import broadcast_params, simulate_batch
 s = rig.setup(rec)
 c = s.geometry.backlash / 2
 y0 = jnp.stack([jnp.linspace(-0.9, 0.9, 16) * c, jnp.zeros(16)], axis=1)

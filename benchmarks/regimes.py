@@ -35,10 +35,10 @@ import jax.numpy as jnp
 import numpy as np
 
 import rattlefit as rf
-from rattlefit.model import DEFAULT_MIN_FILM, RattleParams
-from rattlefit.reference import simulate_reference
-from rattlefit.simulate import broadcast_params, simulate_batch
-from rattlefit.spectra import spectral_features
+from rattlefit.features.spectra import spectral_features
+from rattlefit.physics.model import DEFAULT_MIN_FILM, RattleParams
+from rattlefit.simulation.reference import simulate_reference
+from rattlefit.simulation.solve import broadcast_params, simulate_batch
 from run import _operating_points, _truth_params  # benchmarks/run.py: the shared files
 
 #: (label, field of RattleParams, factor on the truth) for ``--variants``

@@ -40,10 +40,10 @@ rattlefit.use_cpu_cores()  # before JAX starts
 import equinox as eqx  # noqa: E402
 import numpy as np  # noqa: E402
 
-import rattlefit.fit as F  # noqa: E402
-from rattlefit.parameters import Z_END  # noqa: E402
-from rattlefit.profile import PROFILE_JITTER  # noqa: E402
-from rattlefit.recording import read_recording  # noqa: E402
+import rattlefit.inference.fit as F  # noqa: E402
+from rattlefit.inference.parameters import Z_END  # noqa: E402
+from rattlefit.inference.profile import PROFILE_JITTER  # noqa: E402
+from rattlefit.io.recording import read_recording  # noqa: E402
 
 RECORDINGS = Path(__file__).resolve().parents[2] / "shared" / "recordings"
 
@@ -70,7 +70,7 @@ def jitter_dcosts(problem, options, z, near, y0, dof_rec) -> np.ndarray:
 
 def sweep() -> list:
     """The two recordings of sessions 22–35's joint-sweep test (65.0 and 65.4 mm)."""
-    from rattlefit.synthetic import backlash_sweep
+    from rattlefit.simulation.synthetic import backlash_sweep
 
     return [rec for rec, _ in backlash_sweep((65.0, 65.4), (21, 22))]
 

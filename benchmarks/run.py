@@ -55,7 +55,7 @@ AIM_FORWARD, TARGET_FORWARD = 50.0, 100.0  # × faster than the reference at mat
 AIM_IDENTIFY = 60.0  # s, one 3-s recording, compile included
 AIM_POSTERIOR_ESS, AIM_POSTERIOR_S = 400.0, 600.0  # ESS per parameter within this wall time
 POSTERIOR_STEPS = 150  # default chain length of the posterior step (16 walkers)
-AIM_DIAGNOSE = 900.0  # s, identify + every effect of rattlefit.effects, compile included
+AIM_DIAGNOSE = 900.0  # s, identify + every effect of rattlefit.physics.effects, compile included
 # the shared file whose truth lists an unmodelled effect (run-out) and that has rattle
 DIAGNOSE_RECORDING = "pairII_boundary_65.4_20pct_16Hz_runout.h5"
 
@@ -83,15 +83,15 @@ def _atol(rtol: float) -> float:
 
 def _operating_points(names):
     """(name, RigSetup, truth dict) of each recording, in the order given."""
-    from rattlefit import rig
-    from rattlefit.recording import read_recording
+    from rattlefit.inference import rig
+    from rattlefit.io.recording import read_recording
 
     truth = json.loads((RECORDINGS / "truth.json").read_text())
     return [(n, rig.setup(read_recording(RECORDINGS / f"{n}.h5")), truth[n]) for n in names]
 
 
 def _truth_params(setup, truth):
-    from rattlefit.model import RattleParams
+    from rattlefit.physics.model import RattleParams
 
     return RattleParams(
         truth["a_mm"] * 1e-3,
@@ -159,8 +159,8 @@ def step_reference(args):
     """The sharp scipy reference: M realisations at its default and at loose tolerances."""
     import numpy as np
 
-    from rattlefit.reference import simulate_reference
-    from rattlefit.spectra import spectral_features
+    from rattlefit.features.spectra import spectral_features
+    from rattlefit.simulation.reference import simulate_reference
 
     out = {}
     for name, s, truth in _operating_points(args["names"]):
@@ -207,8 +207,8 @@ def step_forward(args):
     import jax.numpy as jnp
     import numpy as np
 
-    from rattlefit.simulate import simulate
-    from rattlefit.spectra import spectral_features
+    from rattlefit.features.spectra import spectral_features
+    from rattlefit.simulation.solve import simulate
 
     reps = args["reps"]
     compile_s = {}
@@ -261,8 +261,8 @@ def step_paired(args):
     The headline speed ratio comes from here: alternating the two solvers exposes both to the
     same machine load, which separate processes minutes apart do not guarantee.
     """
-    from rattlefit.reference import simulate_reference
-    from rattlefit.simulate import simulate
+    from rattlefit.simulation.reference import simulate_reference
+    from rattlefit.simulation.solve import simulate
 
     compiled = set()
     out = {}
@@ -306,7 +306,7 @@ def step_batch(args):
     import jax.numpy as jnp
     import numpy as np
 
-    from rattlefit.simulate import broadcast_params, simulate, simulate_batch
+    from rattlefit.simulation.solve import broadcast_params, simulate, simulate_batch
 
     compiled = set()
     out = {}
@@ -354,15 +354,15 @@ def step_batch(args):
 
 def _params_from(v):
     """RattleParams from the vector (a, T_b, μ, backlash, h_min, stiffness scale)."""
-    from rattlefit.model import RattleParams
+    from rattlefit.physics.model import RattleParams
 
     return RattleParams(v[0], v[1], v[2], v[3], min_film=v[4], stiffness_scale=v[5])
 
 
 def _forward_features(s, params, y0, opts):
     """One forward simulation as a user runs it: simulate(), then the features."""
-    from rattlefit.simulate import simulate
-    from rattlefit.spectra import spectral_features
+    from rattlefit.features.spectra import spectral_features
+    from rattlefit.simulation.solve import simulate
 
     sol = simulate(s.model, params, s.drive, y0=y0, sample_rate=s.sample_rate, **opts)
     return spectral_features(sol.relative_motion, s.bands, noise_floor=s.noise_floor)
@@ -371,8 +371,8 @@ def _forward_features(s, params, y0, opts):
 def _fd_features(s, params, y0, opts):
     """Features of a batch of members (one simulate_batch call, batch='lockstep', as the fit
     simulates), and the batch."""
-    from rattlefit.simulate import simulate_batch
-    from rattlefit.spectra import spectral_features
+    from rattlefit.features.spectra import spectral_features
+    from rattlefit.simulation.solve import simulate_batch
 
     sol = simulate_batch(
         s.model, params, s.drive, y0=y0, batch="lockstep", sample_rate=s.sample_rate, **opts
@@ -384,8 +384,8 @@ def _jacobian_functions():
     """Jitted features(scale) and its jacfwd, built once so every point reuses the compile."""
     import jax
 
-    from rattlefit.simulate import simulate
-    from rattlefit.spectra import spectral_features
+    from rattlefit.features.spectra import spectral_features
+    from rattlefit.simulation.solve import simulate
 
     def feats(scale, base, model, drive, y0, noise_floor, bands):
         # features as a function of multiplicative factors on the six parameters: the
@@ -519,8 +519,8 @@ def _guarded(step):
 
 def _timed_identify(file: str):
     """(recording, identify([recording], FitOptions()) result, wall time with compilation)."""
-    from rattlefit.fit import FitOptions, identify
-    from rattlefit.recording import read_recording
+    from rattlefit.inference.fit import FitOptions, identify
+    from rattlefit.io.recording import read_recording
 
     rec = read_recording(RECORDINGS / file)
     t0 = time.perf_counter()
@@ -554,8 +554,8 @@ def step_identify(args):
 @_guarded
 def step_posterior(args):
     """identify() then sample() of the same 3-s recording: wall times, ESS, ESS per second."""
-    from rattlefit.fit import FitOptions
-    from rattlefit.sample import SampleOptions, sample
+    from rattlefit.inference.fit import FitOptions
+    from rattlefit.inference.posterior import SampleOptions, sample
 
     rec, fit, t_fit = _timed_identify(args["file"])
     t0 = time.perf_counter()
@@ -585,8 +585,8 @@ def step_posterior(args):
 @_guarded
 def step_diagnose(args):
     """diagnose() of a 3-s recording with every effect: wall time (identify included)."""
-    from rattlefit.diagnose import diagnose
-    from rattlefit.recording import read_recording
+    from rattlefit.diagnosis.diagnose import diagnose
+    from rattlefit.io.recording import read_recording
 
     rec = read_recording(RECORDINGS / args["file"])
     t0 = time.perf_counter()

@@ -1,7 +1,7 @@
 """What the velocity's absolute tolerance costs in steps and in band features.
 
 The fit's simulations take their absolute tolerances per state component, ``rtol`` times the
-state's characteristic sizes (:data:`rattlefit.simulate.STATE_SCALES`: 1 mm for q, 30 mm/s for
+state's characteristic sizes (:data:`rattlefit.simulation.solve.STATE_SCALES`: 1 mm for q, 30 mm/s for
 v since session 32; 1 mm/s for both before). This script simulates M realisations (released
 across the gap, seeded) at the truth of shared recordings with the lockstep integrator, at the
 fit's rtol and several velocity scales, and compares each ensemble's mean band features with a
@@ -51,13 +51,13 @@ def main(argv=None) -> int:
     import jax.numpy as jnp
     import numpy as np
 
-    from rattlefit.simulate import (
+    from rattlefit.features.spectra import spectral_features
+    from rattlefit.simulation.solve import (
         DRY_STATE_SCALES,
         STATE_SCALES,
         broadcast_params,
         simulate_batch,
     )
-    from rattlefit.spectra import spectral_features
     from run import _operating_points, _truth_params  # benchmarks/run.py: the shared files
 
     m = args.realisations

@@ -1,10 +1,10 @@
 """Cost of one lockstep step with the stiffness tables shared, against a copy per row.
 
-Every fit simulates its rows with :func:`rattlefit.simulate.solve_rows`, 24 rows a device. Each
+Every fit simulates its rows with :func:`rattlefit.simulation.solve.solve_rows`, 24 rows a device. Each
 row's model used to carry its own copy of the mesh-stiffness table (64 KB for the mild shared
 file's pair, so 1.5 MB for 24 rows), and the table is read at every vector-field call: the
 copies do not stay in cache. Since session 29 the rows read their table out of one shared
-stack (:func:`rattlefit.model.share_stiffness_tables`). This script times both layouts in one
+stack (:func:`rattlefit.physics.model.share_stiffness_tables`). This script times both layouts in one
 process, alternating them, on the mild shared file's operating point at its truth (rows
 released across the gap, 3.5 s at rtol 1e-5 as the fit runs them), and reports µs per step
 (per iteration of the lockstep loop, i.e. per step of the row that takes most) and their
@@ -38,8 +38,8 @@ def main(argv=None) -> int:
     import jax.numpy as jnp
     import numpy as np
 
-    from rattlefit.model import share_stiffness_tables
-    from rattlefit.simulate import broadcast_params, solve_rows
+    from rattlefit.physics.model import share_stiffness_tables
+    from rattlefit.simulation.solve import broadcast_params, solve_rows
     from run import _operating_points, _truth_params  # benchmarks/run.py: the shared files
 
     [(_, setup, truth)] = _operating_points([NAME])

@@ -6,7 +6,7 @@ recordings. One sweep answers that for one realisation only: rattle is chaotic, 
 rough at the scale of a few per cent of a parameter, and which way one comparison falls has
 changed with every change of realisation (tests/test_fit.py's sweep: benchmarks/README, "The
 joint sweep's tightening over many sweeps"). This script asks it of many: for each of
-``--sweeps`` seeded sweeps (`rattlefit.synthetic.backlash_sweep`, pair II in boundary
+``--sweeps`` seeded sweeps (`rattlefit.simulation.synthetic.backlash_sweep`, pair II in boundary
 lubrication, 10 % at 8 Hz by default; every recording with its own seed, printed), it
 identifies each recording alone and all of them jointly with the default `FitOptions`
 (fit seed: the sweep's), and reports for the shared parameters (`a`, `drag_torque`,
@@ -41,8 +41,8 @@ import numpy as np
 
 import rattlefit as rf
 from _study import add_set_argument, set_overrides, write_json
-from rattlefit.fit import FitOptions, identify
-from rattlefit.synthetic import backlash_sweep
+from rattlefit.inference.fit import FitOptions, identify
+from rattlefit.simulation.synthetic import backlash_sweep
 
 SHARED = ("a", "drag_torque", "viscosity")
 

@@ -12,7 +12,7 @@ import pytest
 from click.testing import CliRunner
 
 from rattlefit.cli import main
-from rattlefit.recording import read_recording, read_truth
+from rattlefit.io.recording import read_recording, read_truth
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 

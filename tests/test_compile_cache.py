@@ -18,8 +18,8 @@ import sys
 import numpy as np
 import rattlefit as rf
 rf.use_compilation_cache(sys.argv[1])
-from rattlefit.fit import FitOptions, _build, _evaluate
-from rattlefit.recording import read_recording
+from rattlefit.inference.fit import FitOptions, _build, _evaluate
+from rattlefit.io.recording import read_recording
 rec = read_recording(sys.argv[2])
 problem, _ = _build([rec], FitOptions(), np.random.default_rng(0))
 features = _evaluate(problem, np.zeros((1, len(problem.specs))))

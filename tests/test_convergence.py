@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import rattlefit as rf
-from rattlefit.reference import simulate_reference
-from rattlefit.simulate import broadcast_params, simulate_batch
-from rattlefit.spectra import BandSpec, quantisation_floor, rattle_index, spectral_features
+from rattlefit.features.spectra import BandSpec, quantisation_floor, rattle_index, spectral_features
+from rattlefit.simulation.reference import simulate_reference
+from rattlefit.simulation.solve import broadcast_params, simulate_batch
 
 
 def test_trajectory_converges_over_short_window(pair2):

@@ -1,6 +1,6 @@
 """rattlefit diagnose: proven on recordings whose effect the model withholds.
 
-The recordings are synthetic (rattlefit's simulator with an effect of :mod:`rattlefit.effects`
+The recordings are synthetic (rattlefit's simulator with an effect of :mod:`rattlefit.physics.effects`
 added, so the truth is known); the fit and the diagnosis use the paper's model without it.
 """
 
@@ -12,9 +12,8 @@ import pytest
 from click.testing import CliRunner
 
 import rattlefit as rf
-from rattlefit import effects as fx
 from rattlefit.cli import main
-from rattlefit.diagnose import (
+from rattlefit.diagnosis.diagnose import (
     FREE_FACTORS,
     SCREEN_DECADES,
     DiagnoseOptions,
@@ -26,9 +25,10 @@ from rattlefit.diagnose import (
     effect_specs,
 )
 from rattlefit.errors import RattlefitError
-from rattlefit.fit import FitOptions, _build
-from rattlefit.recording import OperatingPoint, write_recording
-from rattlefit.synthetic import synthesize
+from rattlefit.inference.fit import FitOptions, _build
+from rattlefit.io.recording import OperatingPoint, write_recording
+from rattlefit.physics import effects as fx
+from rattlefit.simulation.synthetic import synthesize
 
 #: The effects tried in the CI tests: the withheld one and two that could mimic it (a
 #: gap error at the mesh order, a gap error per revolution), to keep CI short.

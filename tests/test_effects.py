@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import rattlefit as rf
-from rattlefit import effects as fx
+from rattlefit.physics import effects as fx
 
 STEADY = dict(burn_in=0.0, rtol=1e-10, atol=1e-15)
 

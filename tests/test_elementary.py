@@ -6,7 +6,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from rattlefit.elementary import arctan, sin_cos_cycles
+from rattlefit.physics.elementary import arctan, sin_cos_cycles
 
 EPS = np.finfo(float).eps
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from rattlefit.ensemble import band_sigma, ensemble_mean, regime_weights
+from rattlefit.features.ensemble import band_sigma, ensemble_mean, regime_weights
 
 N, B = 6, 30
 THRESHOLD = 9.0
@@ -127,7 +127,7 @@ def test_a_lone_realisation_is_not_a_regime():
 def test_a_regime_too_few_releases_reach_is_not_the_recordings():
     # of 24 releases, 3 (an eighth) in the recording's regime: too improbable, the common
     # regime stays; 4 (a sixth, MIN_REGIME_SHARE) make it the recording's
-    from rattlefit.ensemble import MIN_REGIME_SHARE
+    from rattlefit.features.ensemble import MIN_REGIME_SHARE
 
     assert MIN_REGIME_SHARE * 24 == pytest.approx(4)
     rng = np.random.default_rng(8)

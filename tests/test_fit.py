@@ -17,10 +17,10 @@ import optimistix as optx
 import pytest
 
 import rattlefit as rf
-from rattlefit.ensemble import band_sigma as _band_sigma
-from rattlefit.ensemble import chaotic_part as _chaotic_part
-from rattlefit.ensemble import shrunk_correlation
-from rattlefit.fit import (
+from rattlefit.features.ensemble import band_sigma as _band_sigma
+from rattlefit.features.ensemble import chaotic_part as _chaotic_part
+from rattlefit.features.ensemble import shrunk_correlation
+from rattlefit.inference.fit import (
     LM_REJECTIONS,
     START_POINTS,
     START_RANGES,
@@ -36,14 +36,14 @@ from rattlefit.fit import (
     _starting_points,
     identify,
 )
-from rattlefit.oil import dynamic_viscosity
-from rattlefit.parameters import ParameterSpec, nuisance_prior
-from rattlefit.profile import (
+from rattlefit.inference.parameters import ParameterSpec, nuisance_prior
+from rattlefit.inference.profile import (
     SCREEN_FACTOR,
     ProfileCosts,
 )
-from rattlefit.recording import OperatingPoint, read_recording
-from rattlefit.synthetic import PAPER_OIL, backlash_sweep, synthesize
+from rattlefit.io.recording import OperatingPoint, read_recording
+from rattlefit.physics.oil import dynamic_viscosity
+from rattlefit.simulation.synthetic import PAPER_OIL, backlash_sweep, synthesize
 
 TARGETS = ("a", "drag_torque", "viscosity")
 
@@ -320,7 +320,7 @@ def test_features_do_not_depend_on_how_the_rows_are_chunked(monkeypatch, mild_re
     # chunks, the last padded) and of 4 (three). (Chunks of other sizes compile to other code,
     # vectorised otherwise over the rows, whose rounding differs: measured in session 29,
     # chunks of 5 or 2 rows give every row another realisation. No evaluation uses them.)
-    import rattlefit.fit as fit
+    import rattlefit.inference.fit as fit
 
     problem, _ = _build([mild_recording[0]], FitOptions(), np.random.default_rng(0))
     # (one recording: START_POINTS starts, the first of the longer sequence asked for)
@@ -357,7 +357,7 @@ def test_host_side_arithmetic_compiles_nothing_and_equals_its_traced_form(mild_r
     # give what the same functions give traced inside the Levenberg–Marquardt loop.
     import jax
 
-    from rattlefit.fit import _costs, _fd_jacobian, _fd_points
+    from rattlefit.inference.fit import _costs, _fd_jacobian, _fd_points
 
     problem, _ = _build([mild_recording[0]], FitOptions(), np.random.default_rng(0))
     rng = np.random.default_rng(5)
@@ -417,7 +417,7 @@ def test_the_noise_model_reports_the_share_of_the_recordings_regime(mild_recordi
     # 4 of 24 realisations at the optimum in the recording's regime (a sixth, enough to be it):
     # the noise model is built on those four, and says that they are a sixth; with
     # regime="common" it is built on the other twenty
-    from rattlefit.fit import _noise_model
+    from rattlefit.inference.fit import _noise_model
 
     for regime, share in (("recording", 4 / 24), ("common", 20 / 24)):
         options = FitOptions(regime=regime)
@@ -445,7 +445,7 @@ def test_profile_points_far_outside_are_set_aside_after_a_few_realisations(mild_
     # session 27, are not far enough in this cost: on an AMD EPYC without AVX-512, another
     # realisation, a film 10× the truth read Δcost 1.9 against a limit of 3.5 and a → 0 read
     # −1.8, while the drag torques read 35 and 308.)
-    import rattlefit.fit as fit
+    import rattlefit.inference.fit as fit
 
     problem, _ = _build([mild_recording[0]], FitOptions(), np.random.default_rng(0))
     y0 = np.asarray(problem.y0)[:, [0, 1, 2, 3, 4, 5, 0, 1]]  # 8 realisations
@@ -640,7 +640,7 @@ def test_an_identified_estimate_lands_within_20_percent_as_often_as_the_interval
     # is N(0, w/1.96); at the widest identified interval it must stay within 20 % at least as
     # often as the coverage aim (90 %). Checked by simulation, not by the formula of the
     # constant's comment.
-    from rattlefit.fit import IDENTIFIED_RATIO
+    from rattlefit.inference.fit import IDENTIFIED_RATIO
 
     rng = np.random.default_rng(0)
     sd = np.log(IDENTIFIED_RATIO) / (2 * 1.96)

@@ -3,7 +3,7 @@ import math
 import pytest
 
 from rattlefit.errors import ParameterError
-from rattlefit.geometry import table2_pair
+from rattlefit.physics.geometry import table2_pair
 
 
 def test_table2_pitch_diameters_give_design_centre_distance():

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 import rattlefit as rf
-from rattlefit.integrate import STEP_LIMIT, SUCCESS, solve_lockstep
-from rattlefit.model import RattleModel
-from rattlefit.simulate import broadcast_params, simulate, simulate_batch
-from rattlefit.spectra import BandSpec, spectral_features
+from rattlefit.features.spectra import BandSpec, spectral_features
+from rattlefit.physics.model import RattleModel
+from rattlefit.simulation.lockstep import STEP_LIMIT, SUCCESS, solve_lockstep
+from rattlefit.simulation.solve import broadcast_params, simulate, simulate_batch
 
 FS = 10_000.0
 
@@ -218,7 +218,7 @@ def test_dense_output_is_diffraxs_tsit5_interpolation():
     # the monomial (Horner) form of the interpolant against diffrax's factored polynomials
     from diffrax._solver.tsit5 import _Tsit5Interpolation
 
-    from rattlefit.integrate import _dense_output
+    from rattlefit.simulation.lockstep import _dense_output
 
     rng = np.random.default_rng(5)
     y0 = rng.normal(size=(4, 2))

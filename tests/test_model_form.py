@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 import rattlefit as rf
-from rattlefit.model import DEFAULT_MIN_FILM
-from rattlefit.recording import read_recording
-from rattlefit.rig import setup
-from rattlefit.simulate import broadcast_params, quantised_relative_motion
-from rattlefit.spectra import spectral_features
+from rattlefit.features.spectra import spectral_features
+from rattlefit.inference.rig import setup
+from rattlefit.io.recording import read_recording
+from rattlefit.physics.model import DEFAULT_MIN_FILM
+from rattlefit.simulation.solve import broadcast_params, quantised_relative_motion
 
 NAME = "pairII_boundary_65.0_10pct_8Hz"
 

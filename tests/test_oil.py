@@ -4,7 +4,7 @@ import math
 import pytest
 
 from rattlefit.errors import ParameterError
-from rattlefit.oil import dynamic_viscosity, kinematic_viscosity_cst
+from rattlefit.physics.oil import dynamic_viscosity, kinematic_viscosity_cst
 
 # The seed paper's oil, Table 3: SAE 80W/90, 156.5 cSt at 40 °C, 15.7 cSt at 100 °C, 890 kg/m³.
 OIL = (156.5, 15.7, 890.0)

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 import rattlefit as rf
-from rattlefit.oil import dynamic_viscosity
-from rattlefit.spectra import rattle_index
+from rattlefit.features.spectra import rattle_index
+from rattlefit.physics.oil import dynamic_viscosity
 
 CENTRE_DISTANCES = (65.0, 65.4, 65.6, 66.0)
 LUBRICATION = {  # a (m) and oil temperature (°C): the paper's Section 6 values

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import rattlefit as rf
-from rattlefit.parallel import map_blocks, map_rows
-from rattlefit.simulate import broadcast_params
+from rattlefit.simulation.parallel import map_blocks, map_rows
+from rattlefit.simulation.solve import broadcast_params
 
 #: A lax.map member is computed the same way whatever the batch, so a long run agrees to the
 #: last bits. The lockstep batch vectorises each device's share, and a vectorised
@@ -29,7 +29,7 @@ SCRIPT = textwrap.dedent(
     import sys
     import numpy as np
     import rattlefit as rf
-    from rattlefit.simulate import broadcast_params
+    from rattlefit.simulation.solve import broadcast_params
     RUNS = {runs!r}
     n = rf.use_cpu_cores(2)
     assert n == 2, n

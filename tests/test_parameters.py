@@ -1,4 +1,4 @@
-"""The fitted parameters' coordinates and priors (:mod:`rattlefit.parameters`), against closed
+"""The fitted parameters' coordinates and priors (:mod:`rattlefit.inference.parameters`), against closed
 forms: the map from z is ``lower · (upper/lower)^sigmoid(z)``, its log-derivative
 ``log(upper/lower) · s(1 − s)``, and the priors' rows are log-normal."""
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from rattlefit.errors import RattlefitError
-from rattlefit.parameters import (
+from rattlefit.inference.parameters import (
     NUISANCES,
     Z_END,
     ParameterSpec,

@@ -1,4 +1,4 @@
-"""The profile-likelihood machinery of :mod:`rattlefit.profile` against closed forms.
+"""The profile-likelihood machinery of :mod:`rattlefit.inference.profile` against closed forms.
 
 Each test builds a profile whose exact interval is known (a quadratic, a valley of known
 shape with noise of known spread) and checks the stage that should find it: the threshold's
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from rattlefit.profile import (
+from rattlefit.inference.profile import (
     PROFILE_JITTER,
     PROFILE_MIN_STEP,
     PROFILE_RESOLUTION,

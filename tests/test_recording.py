@@ -1,4 +1,4 @@
-"""Tests of rattlefit.recording: the HDF5 recording format, version 1."""
+"""Tests of rattlefit.io.recording: the HDF5 recording format, version 1."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from rattlefit.errors import RecordingError
-from rattlefit.recording import (
+from rattlefit.io.recording import (
     SCHEMAS,
     Recording,
     inspect_warnings,
@@ -185,7 +185,7 @@ def test_in_memory_invariants(clean_file: Path) -> None:
 
 
 def test_schema_covers_every_dataclass_field() -> None:
-    from rattlefit.recording import GearPairSpec, OilSpec, OperatingPoint
+    from rattlefit.io.recording import GearPairSpec, OilSpec, OperatingPoint
 
     names = {spec.name for spec in SCHEMAS[1]}
     for cls in (GearPairSpec, OperatingPoint, OilSpec):
@@ -355,7 +355,7 @@ def test_bytes_attributes_and_int32_counts_are_accepted(copy_of: Path) -> None:
 
 
 def test_jump_bound_formula() -> None:
-    from rattlefit.recording import OperatingPoint
+    from rattlefit.io.recording import OperatingPoint
 
     op = OperatingPoint("dry", 20.0, 52.36, 10.472, 16.0)
     expected = int(np.ceil(40000 / (2 * np.pi) * (3 * (52.36 + 10.472) + 100) / 10000)) + 2

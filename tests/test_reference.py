@@ -1,4 +1,4 @@
-"""Tests of rattlefit.reference, the sharp-switching scipy reference solver, vs closed forms."""
+"""Tests of rattlefit.simulation.reference, the sharp-switching scipy reference solver, vs closed forms."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from rattlefit.drive import Drive
 from rattlefit.errors import ParameterError
-from rattlefit.geometry import table2_pair
-from rattlefit.reference import ReferenceSolution, simulate_reference
+from rattlefit.physics.drive import Drive
+from rattlefit.physics.geometry import table2_pair
+from rattlefit.simulation.reference import ReferenceSolution, simulate_reference
 
 
 @pytest.fixture(scope="module")

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from rattlefit.fit import FitOptions, FitResult, ParameterEstimate
-from rattlefit.profile import profile_threshold
+from rattlefit.inference.fit import FitOptions, FitResult, ParameterEstimate
+from rattlefit.inference.profile import profile_threshold
 from rattlefit.report import format_table
 
 

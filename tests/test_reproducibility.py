@@ -19,8 +19,8 @@ SCRIPT = """
 import hashlib, json, os
 import numpy as np
 import rattlefit as rf
-from rattlefit.recording import OperatingPoint
-from rattlefit.synthetic import synthesize
+from rattlefit.io.recording import OperatingPoint
+from rattlefit.simulation.synthetic import synthesize
 g = rf.table2_pair("II", center_distance_mm=65.0)
 op = OperatingPoint("boundary", 20.0, 52.36, 5.236, 8.0)
 p = rf.RattleParams(0.085e-3, 0.025, 0.4942, g.backlash)

@@ -17,10 +17,9 @@ from scipy import stats
 
 import rattlefit as rf
 from rattlefit.errors import RattlefitError
-from rattlefit.fit import FitOptions, NoiseModel, identify
-from rattlefit.parameters import ParameterSpec
-from rattlefit.recording import OperatingPoint
-from rattlefit.sample import (
+from rattlefit.inference.fit import FitOptions, NoiseModel, identify
+from rattlefit.inference.parameters import ParameterSpec
+from rattlefit.inference.posterior import (
     LogPosterior,
     SampleOptions,
     _Context,
@@ -28,7 +27,8 @@ from rattlefit.sample import (
     run_chain,
     sample,
 )
-from rattlefit.synthetic import synthesize
+from rattlefit.io.recording import OperatingPoint
+from rattlefit.simulation.synthetic import synthesize
 
 
 def _log_values(specs, z):
@@ -47,7 +47,7 @@ def _independent(chain, burn):
 
 def _posterior(chain, names, units, *, burn_in, **extra):
     """A Posterior around ``chain`` (steps, walkers, P) with placeholder diagnostics."""
-    from rattlefit.sample import Posterior
+    from rattlefit.inference.posterior import Posterior
 
     steps, walkers, p = chain.shape
     fields = dict(
@@ -228,7 +228,7 @@ def test_posterior_summaries_of_independent_normal_draws():
 def test_predictive_plot_draws_from_the_kept_chain(tmp_path, small_recording):
     # a chain that sits at the true parameters: its predictive band spectra must lie on the
     # measured ones within the run-to-run spread (rms 0.1 in log10 for this mild rattle)
-    from rattlefit.fit import _build
+    from rattlefit.inference.fit import _build
     from rattlefit.report import plot_posterior
 
     options = FitOptions(n_realisations=3)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import rattlefit as rf
-from rattlefit.model import equivalent_viscosity, squeeze_coefficient
+from rattlefit.physics.model import equivalent_viscosity, squeeze_coefficient
 
 STILL = rf.Drive(0.0, 8.0, [0.0], [0.0])  # θ1 ≡ 0: no forcing, frozen mesh stiffness
 
@@ -163,7 +163,7 @@ def test_batch_equals_single(pair2):
     drive = rf.Drive.commanded(52.36, 10.472, 16.0)
     a = jnp.array([0.05e-3, 0.2e-3])
     p = rf.RattleParams(a, 0.025, 0.49, pair2.backlash)
-    from rattlefit.simulate import broadcast_params
+    from rattlefit.simulation.solve import broadcast_params
 
     # short and without burn-in: rattle is chaotic, so round-off differences between the
     # batched and the single solve would grow over longer runs
@@ -182,7 +182,7 @@ def test_failure_is_reported_not_nan(pair2):
     assert not bool(sol.success)
     assert np.all(np.isfinite(np.asarray(sol.q)))
     with pytest.raises(rf.SolverError, match="failed"):
-        from rattlefit.simulate import raise_if_failed
+        from rattlefit.simulation.solve import raise_if_failed
 
         raise_if_failed(sol)
 
@@ -212,7 +212,7 @@ def test_invalid_parameters_refused():
 
 
 def test_forward_sensitivity_is_finite(pair2):
-    from rattlefit.spectra import BandSpec, spectral_features
+    from rattlefit.features.spectra import BandSpec, spectral_features
 
     model = rf.RattleModel.from_geometry(pair2)
     drive = rf.Drive.commanded(52.36, 10.472, 16.0)
@@ -230,8 +230,8 @@ def test_forward_sensitivity_is_finite(pair2):
 
 
 def test_quantised_output_has_eq8_resolution(pair2):
-    from rattlefit.simulate import quantised_relative_motion
-    from rattlefit.spectra import quantisation_std
+    from rattlefit.features.spectra import quantisation_std
+    from rattlefit.simulation.solve import quantised_relative_motion
 
     model = rf.RattleModel.from_geometry(pair2)
     drive = rf.Drive.commanded(52.36, 10.472, 16.0)

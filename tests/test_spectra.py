@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy.signal import welch
 
-from rattlefit.spectra import (
+from rattlefit.features.spectra import (
     BandSpec,
     amplitude_spectrum,
     band_power,

@@ -20,14 +20,14 @@ import jax  # noqa: E402
 jax.config.update("jax_enable_x64", True)
 
 from .compile_cache import use_compilation_cache  # noqa: E402
-from .drive import Drive  # noqa: E402
 from .errors import ParameterError, RattlefitError, RecordingError, SolverError  # noqa: E402
-from .geometry import GearGeometry, table2_pair  # noqa: E402
-from .model import Effect, RattleModel, RattleParams, Smoothing  # noqa: E402
-from .oil import dynamic_viscosity  # noqa: E402
-from .parallel import use_cpu_cores  # noqa: E402
+from .physics.drive import Drive  # noqa: E402
+from .physics.geometry import GearGeometry, table2_pair  # noqa: E402
+from .physics.model import Effect, RattleModel, RattleParams, Smoothing  # noqa: E402
+from .physics.oil import dynamic_viscosity  # noqa: E402
 from .reproducibility import platform_info  # noqa: E402
-from .simulate import Solution, simulate, simulate_batch  # noqa: E402
+from .simulation.parallel import use_cpu_cores  # noqa: E402
+from .simulation.solve import Solution, simulate, simulate_batch  # noqa: E402
 
 __version__ = "0.1.0"
 

@@ -17,7 +17,7 @@ import click
 
 from .compile_cache import use_compilation_cache
 from .errors import RattlefitError
-from .parallel import use_cpu_cores
+from .simulation.parallel import use_cpu_cores
 
 EXIT_INPUT = 2
 
@@ -36,7 +36,7 @@ def _clean_errors(func):
 
 def _write_json(path: Path, doc: dict) -> None:
     """Write ``doc`` as JSON through a temporary file renamed into place."""
-    from ._util import atomic_write
+    from .util import atomic_write
 
     text = json.dumps(doc, indent=2)
     atomic_write(path, lambda tmp: tmp.write_text(text))
@@ -93,7 +93,7 @@ def _prior_option(func):
 
 def _priors(texts) -> dict:
     """``--prior`` values → ``FitOptions.priors``; a bad one is a usage error naming it."""
-    from .parameters import parse_prior
+    from .inference.parameters import parse_prior
 
     priors = {}
     for text in texts:
@@ -124,8 +124,8 @@ def main() -> None:
 @_clean_errors
 def info(file: Path, as_json: bool) -> None:
     """Summarise a recording: gear pair, operating point, backlash, IGR, suspicious data."""
-    from .recording import inspect_warnings, read_recording
-    from .rig import setup
+    from .inference.rig import setup
+    from .io.recording import inspect_warnings, read_recording
 
     rec = read_recording(file)
     rig = setup(rec)
@@ -214,10 +214,10 @@ def info(file: Path, as_json: bool) -> None:
 @_clean_errors
 def simulate(**o) -> None:
     """Write a synthetic recording with known parameters (stored in its /truth group)."""
-    from .geometry import GearGeometry, table2_pair
-    from .oil import dynamic_viscosity
-    from .recording import OperatingPoint, read_recording, write_recording
-    from .synthetic import PAPER_OIL, synthesize
+    from .io.recording import OperatingPoint, read_recording, write_recording
+    from .physics.geometry import GearGeometry, table2_pair
+    from .physics.oil import dynamic_viscosity
+    from .simulation.synthetic import PAPER_OIL, synthesize
 
     if o["template"] is not None:
         tpl = read_recording(o["template"])
@@ -240,7 +240,7 @@ def simulate(**o) -> None:
         oil.viscosity_100c_cst,
         oil.density_kg_m3,
     )
-    from .model import DEFAULT_MIN_FILM, RattleParams
+    from .physics.model import DEFAULT_MIN_FILM, RattleParams
 
     params = RattleParams(
         o["film_half_length"],
@@ -302,9 +302,9 @@ def identify(
 ) -> None:
     """Fit a, T_b and the viscosity to one recording, or jointly to several of one pair
     (e.g. a backlash sweep; under several lubrications each gets its own a[LUBRICATION])."""
-    from .fit import FitOptions
-    from .fit import identify as run
-    from .recording import read_recording
+    from .inference.fit import FitOptions
+    from .inference.fit import identify as run
+    from .io.recording import read_recording
     from .report import format_table, plot_fit
 
     recordings = [read_recording(f) for f in files]
@@ -349,11 +349,11 @@ def sample(
 ):
     """Sample the Bayesian posterior of a, T_b, the viscosity and the nuisances (emcee),
     starting from an identification of the same files."""
-    from .fit import FitOptions
-    from .recording import read_recording
+    from .inference.fit import FitOptions
+    from .inference.posterior import SampleOptions
+    from .inference.posterior import sample as run
+    from .io.recording import read_recording
     from .report import format_posterior, plot_posterior
-    from .sample import SampleOptions
-    from .sample import sample as run
 
     if burn_in is not None and burn_in >= steps:
         raise click.BadParameter(f"must be below --steps ({steps})", param_hint="--burn-in")
@@ -377,7 +377,7 @@ def sample(
 @click.option(
     "--effects",
     default=None,
-    help="Comma-separated effects to try [default: all of rattlefit.effects.EFFECTS].",
+    help="Comma-separated effects to try [default: all of rattlefit.physics.effects.EFFECTS].",
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="Seeds the fit and tries.")
 @click.option("--quick-fit", is_flag=True, help="Start from a FitOptions.quick() fit.")
@@ -395,11 +395,11 @@ def sample(
 def diagnose(files, effects, seed, quick_fit, iterations, output, plot_dir, priors, quiet):
     """Where the model misses the recordings, which unmodelled effect explains it, and how
     much of the misfit it removes (each effect fitted on top of an identification)."""
-    from .diagnose import DiagnoseOptions
-    from .diagnose import diagnose as run
-    from .effects import EFFECTS
-    from .fit import FitOptions
-    from .recording import read_recording
+    from .diagnosis.diagnose import DiagnoseOptions
+    from .diagnosis.diagnose import diagnose as run
+    from .inference.fit import FitOptions
+    from .io.recording import read_recording
+    from .physics.effects import EFFECTS
     from .report import format_diagnosis, plot_diagnosis
 
     names = tuple(EFFECTS) if effects is None else tuple(e.strip() for e in effects.split(","))

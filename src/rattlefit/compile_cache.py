@@ -6,7 +6,7 @@ of each ``rattlefit identify`` (measured: the first batched evaluation of a fit 
 a fresh process and 2.9 s with the program read back from the cache). Until session 22 the
 fit's host-side arithmetic ran in eager ``jax.numpy`` and compiled hundreds of small programs
 besides (572, 15 s, on a cold identify of the mild shared file; a quick identify of a 3 s file
-took 33 s cold, 19 s warm); it now runs in numpy (:func:`rattlefit._util.array_namespace`),
+took 33 s cold, 19 s warm); it now runs in numpy (:func:`rattlefit.util.array_namespace`),
 and a cold identify compiles 49 programs in 4.6 s.
 JAX can keep compiled programs on disk and reuse them in a later process whose code, JAX
 version, device count and XLA flags (the instruction-set cap of

@@ -8,15 +8,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ._util import atomic_write
-from .diagnose import MISSED_Z, Diagnosis
-from .fit import IDENTIFIED_RATIO, FitResult
-from .profile import CHI2_1_95
-from .recording import Recording
-from .rig import setup
-from .sample import Posterior
-from .simulate import absolute_tolerances, simulate
-from .spectra import welch_psd
+from .diagnosis.diagnose import MISSED_Z, Diagnosis
+from .features.spectra import welch_psd
+from .inference.fit import IDENTIFIED_RATIO, FitResult
+from .inference.posterior import Posterior
+from .inference.profile import CHI2_1_95
+from .inference.rig import setup
+from .io.recording import Recording
+from .simulation.solve import absolute_tolerances, simulate
+from .util import atomic_write
 
 
 def _pyplot():

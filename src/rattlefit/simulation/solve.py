@@ -19,10 +19,10 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
-from .drive import Drive
-from .errors import SolverError
-from .integrate import solve_lockstep
-from .model import RattleModel, RattleParams, share_stiffness_tables
+from ..errors import SolverError
+from ..physics.drive import Drive
+from ..physics.model import RattleModel, RattleParams, share_stiffness_tables
+from .lockstep import solve_lockstep
 from .parallel import map_blocks, map_rows
 
 
@@ -126,11 +126,11 @@ def solve_rows(
     sensitivity: str = "forward",
     stiffness_tables: Float[Array, "T 2 n"] | None = None,
 ) -> Solution:
-    """B solves stepped together by :func:`rattlefit.integrate.solve_lockstep` (traceable).
+    """B solves stepped together by :func:`rattlefit.simulation.lockstep.solve_lockstep` (traceable).
 
     Every array leaf of ``models``, ``params`` and ``drives`` has the leading axis B: each
     row may be another gear pair, parameter set and drive. With ``stiffness_tables`` the
-    rows' models come from :func:`~rattlefit.model.share_stiffness_tables`: each reads its
+    rows' models come from :func:`~rattlefit.physics.model.share_stiffness_tables`: each reads its
     stiffness table out of that shared stack (much faster than a copy per row). The
     :class:`Solution` has the axis B on every field (``time`` and ``theta1`` included).
     Forward-mode differentiable only.
@@ -313,7 +313,7 @@ def simulate_batch(
     :func:`rattlefit.use_cpu_cores` to give JAX one device per CPU core). That measures 3×
     faster than ``"vmap"`` on a CPU because a vmapped adaptive solve steps every member until
     the slowest has finished; on a GPU ``"vmap"`` is the natural choice. ``"lockstep"``
-    steps the members together with rattlefit's own Tsit5 (:mod:`rattlefit.integrate`),
+    steps the members together with rattlefit's own Tsit5 (:mod:`rattlefit.simulation.lockstep`),
     vectorised over each device's share: 2–5× faster per member than ``"map"`` on a CPU,
     forward-mode differentiable only, and the integrator every fit uses; a member's
     trajectory does not depend on its batch while each device's share is a multiple of 4

@@ -23,9 +23,9 @@ import h5py
 import numpy as np
 import numpy.typing as npt
 
-from rattlefit._util import atomic_write
 from rattlefit.errors import RecordingError
-from rattlefit.spectra import quantisation_std
+from rattlefit.features.spectra import quantisation_std
+from rattlefit.util import atomic_write
 
 __all__ = [
     "FORMAT_NAME",
@@ -43,7 +43,7 @@ __all__ = [
     "write_recording",
 ]
 
-FORMAT_NAME = "rattlefit.recording"
+FORMAT_NAME = "rattlefit.io.recording"
 FORMAT_VERSION = 1
 TRUTH_GROUP = "/truth"
 MEMORY = "<memory>"

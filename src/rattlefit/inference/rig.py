@@ -11,12 +11,12 @@ import dataclasses
 
 import numpy as np
 
-from .drive import Drive
-from .geometry import GearGeometry
-from .model import RattleModel
-from .oil import dynamic_viscosity
-from .recording import Recording
-from .spectra import BandSpec, quantisation_floor, rattle_index, spectral_features
+from ..features.spectra import BandSpec, quantisation_floor, rattle_index, spectral_features
+from ..io.recording import Recording
+from ..physics.drive import Drive
+from ..physics.geometry import GearGeometry
+from ..physics.model import RattleModel
+from ..physics.oil import dynamic_viscosity
 
 #: Harmonics of the fluctuation frequency in the fitted drive.
 DRIVE_HARMONICS = 6

@@ -19,7 +19,7 @@ integrator for the batches the fit needs (many realisations and parameter points
 Measured on the shared pair II files (one core, 3.5 s simulated, rtol 1e-5): 2–5× less time
 per member than diffrax with ``lax.map``, with band features equal within their chaotic
 spread. It is forward-mode differentiable (``jax.lax.while_loop``) but not reverse-mode:
-:func:`rattlefit.simulate.simulate` (diffrax) is the differentiable path.
+:func:`rattlefit.simulation.solve.simulate` (diffrax) is the differentiable path.
 """
 
 from __future__ import annotations

@@ -26,7 +26,7 @@ import math
 import jax.numpy as jnp
 import numpy as np
 
-from ._util import array_namespace
+from ..util import array_namespace
 
 #: Robust scale of the median absolute deviation of a Gaussian.
 MAD_TO_SD = 1.4826
@@ -50,7 +50,7 @@ def regime_weights(features, threshold: float | None, *, scale_floor: float = 0.
     nearest the target belongs to it, else the realisations that cluster with that nearest
     one (at least :data:`MIN_IN_REGIME`, and :data:`MIN_REGIME_SHARE` of all). Traces inside
     the fit's residual; on concrete features it computes in numpy (see
-    :func:`~rattlefit._util.array_namespace`).
+    :func:`~rattlefit.util.array_namespace`).
     """
     xp = array_namespace(features, target)
     f = xp.asarray(features)

@@ -1,14 +1,14 @@
 """Where the model misses a recording, which unmodelled effect explains it, and by how much.
 
-:func:`diagnose` starts from an identification (:func:`rattlefit.fit.identify`) and
+:func:`diagnose` starts from an identification (:func:`rattlefit.inference.fit.identify`) and
 
 1. **locates the gap**: each band's standardised residual ``(measured − fitted)/σ`` at the
    optimum, and the bands where it exceeds :data:`MISSED_Z`;
-2. **tries each effect** of :mod:`rattlefit.effects` on its own: the effect is added to the
+2. **tries each effect** of :mod:`rattlefit.physics.effects` on its own: the effect is added to the
    model, its fields are screened over their ranges at the identification's optimum (and
    with less film, and less or more drag, :data:`FREE_FACTORS`) and
    then fitted together with the free parameters ``a`` and ``drag_torque`` (damped
-   Gauss–Newton on finite differences, as the profile polish of :mod:`rattlefit.fit` does;
+   Gauss–Newton on finite differences, as the profile polish of :mod:`rattlefit.inference.fit` does;
    the nuisances stay at the optimum). The model without effects is first re-fitted over
    ``a`` and ``drag_torque`` the same way, from the same :data:`FREE_FACTORS` starts, so
    that an effect is not credited with what that re-fit alone gains (measured on the
@@ -58,14 +58,14 @@ import jax.numpy as jnp
 import numpy as np
 from scipy import stats
 
-from ._util import stamped
-from .effects import EFFECTS, absent, effect_class
-from .errors import RattlefitError
-from .fit import FitOptions, FitResult, _build, _evaluate, _release_states, identify
-from .parameters import Z_END, ParameterSpec
-from .profile import polish_profile
-from .recording import Recording
-from .reproducibility import platform_info
+from ..errors import RattlefitError
+from ..inference.fit import FitOptions, FitResult, _build, _evaluate, _release_states, identify
+from ..inference.parameters import Z_END, ParameterSpec
+from ..inference.profile import polish_profile
+from ..io.recording import Recording
+from ..physics.effects import EFFECTS, absent, effect_class
+from ..reproducibility import platform_info
+from ..util import stamped
 
 #: A band counts as missed when its standardised residual exceeds this (in σ).
 MISSED_Z = 3.0
@@ -90,7 +90,7 @@ REFIT_WARN_RATIO = 0.5
 class DiagnoseOptions:
     """Options of :func:`diagnose`.
 
-    effects : names of the effects to try (:data:`rattlefit.effects.EFFECTS`).
+    effects : names of the effects to try (:data:`rattlefit.physics.effects.EFFECTS`).
     fit : options of the identification that the diagnosis starts from (its seed seeds the
         diagnosis too); by default :meth:`FitOptions.optimum_only`, since the diagnosis uses
         the optimum and its noise model, not the intervals.
@@ -240,7 +240,7 @@ def _gap_closed(chi2_without: float, chi2_with: float, dof: int) -> float:
 
 
 def effect_specs(name: str) -> tuple[ParameterSpec, ...]:
-    """The fitted fields of effect ``name`` as :class:`~rattlefit.parameters.ParameterSpec`s named
+    """The fitted fields of effect ``name`` as :class:`~rattlefit.inference.parameters.ParameterSpec`s named
     ``"<effect>.<field>"`` (no prior: log-uniform over the range)."""
     return tuple(
         ParameterSpec(f"{name}.{field}", unit, lo, hi, fd_log_step=0.3)

@@ -42,10 +42,10 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 from scipy import special
 
-from ._util import array_namespace, concrete
+from ..errors import ParameterError
+from ..util import array_namespace, concrete
 from .drive import Drive
 from .elementary import arctan
-from .errors import ParameterError
 from .geometry import GearGeometry
 
 Scalar = Float[Array, "*batch"]
@@ -231,7 +231,7 @@ def equivalent_viscosity(h, a, viscosity, a_new, radius):
     S is proportional to μ (eq. 5), so this is ``viscosity · S(h; a) / S(h; a_new)``; the
     flank width cancels. Where the film saturates (a ≫ √(R h)) the ratio tends to one, and a
     long film trades against the viscosity only through the gaps where it does not: the
-    valley that a fit under oil jet follows in (a, μ) (:func:`rattlefit.fit.identify`).
+    valley that a fit under oil jet follows in (a, μ) (:func:`rattlefit.inference.fit.identify`).
     """
     return (
         viscosity
@@ -252,9 +252,9 @@ class Effect(eqx.Module):
       speed-dependent drag; it is given the contact force ``f_mesh`` already computed.
     * :meth:`adjust` — the parameters in force at time ``t``, e.g. a viscosity that drifts.
 
-    Two class attributes let :mod:`rattlefit.diagnose` fit the effect: ``name`` (its short
+    Two class attributes let :mod:`rattlefit.diagnosis.diagnose` fit the effect: ``name`` (its short
     name) and ``ranges`` (fitted field → (unit, lower, upper)); the lower end of each range
-    stands for the effect being absent. :mod:`rattlefit.effects` holds the catalogue.
+    stands for the effect being absent. :mod:`rattlefit.physics.effects` holds the catalogue.
     """
 
     name: ClassVar[str] = "effect"
@@ -437,7 +437,7 @@ def share_stiffness_tables(models: RattleModel) -> tuple[RattleModel, Array | No
     A batch of simulations indexes each row's model out of such a stack. Indexing the tables
     along with the rest would give every row a copy of its table (the shared file's: 64 KB a
     row, 1.5 MB for a device's 24 rows), and the interpolation would read it from memory at
-    every vector-field call; :func:`rattlefit.simulate.solve_rows` given the stack instead
+    every vector-field call; :func:`rattlefit.simulation.solve.solve_rows` given the stack instead
     reads each row's table out of the T shared ones, which stay in cache. Measured on the
     lockstep integrator with 24 rows (one core, the mild shared file): 25–30 % less time a
     step. Models whose K is summed exactly (no table) are returned unchanged, with None.

@@ -1,6 +1,6 @@
 """The fitted parameters: their coordinates, ranges and priors.
 
-Every parameter :func:`~rattlefit.fit.identify` fits is a :class:`ParameterSpec`: a range
+Every parameter :func:`~rattlefit.inference.fit.identify` fits is a :class:`ParameterSpec`: a range
 ``(lower, upper)`` in SI units, mapped from an unconstrained coordinate ``z`` by
 ``lower · (upper/lower)^sigmoid(z)`` (positive and bounded without clipping), with an
 optional log-normal prior. :func:`default_specs` lists them for a set of recordings: one film
@@ -20,9 +20,9 @@ import jax
 import jax.numpy as jnp
 from scipy.special import expit
 
-from ._util import array_namespace
-from .errors import RattlefitError
-from .model import DEFAULT_MIN_FILM
+from ..errors import RattlefitError
+from ..physics.model import DEFAULT_MIN_FILM
+from ..util import array_namespace
 
 if TYPE_CHECKING:
     from .rig import RigSetup

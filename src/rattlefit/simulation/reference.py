@@ -1,14 +1,14 @@
 """Sharp-switching reference solver of the one-dof rattle model (numpy + scipy, no JAX).
 
-This module is the *ground truth* for the smoothed JAX simulator of :mod:`rattlefit.model` and
+This module is the *ground truth* for the smoothed JAX simulator of :mod:`rattlefit.physics.model` and
 the baseline a gear-dynamics engineer would write. It integrates the **unsmoothed** equations
 with :func:`scipy.integrate.solve_ivp`, locating every contact onset and exit as a terminal
 event and restarting there, so that no step ever straddles a discontinuity of the force law.
 
-It is deliberately independent of :mod:`rattlefit.model`: the laws are written again below from
+It is deliberately independent of :mod:`rattlefit.physics.model`: the laws are written again below from
 the formulas (no function of ``model.py`` is called). It reads only scalar attributes of
-:class:`~rattlefit.geometry.GearGeometry` and the coefficient arrays of a
-:class:`~rattlefit.drive.Drive`.
+:class:`~rattlefit.physics.geometry.GearGeometry` and the coefficient arrays of a
+:class:`~rattlefit.physics.drive.Drive`.
 
 The sharp equations
 -------------------
@@ -51,7 +51,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .errors import ParameterError, SolverError
+from ..errors import ParameterError, SolverError
 
 __all__ = ["ReferenceSolution", "simulate_reference"]
 

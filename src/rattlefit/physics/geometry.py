@@ -26,10 +26,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .errors import ParameterError
+from ..errors import ParameterError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .recording import GearPairSpec
+    from ..io.recording import GearPairSpec
 
 #: ISO 6336-1 factors for solid gear blanks and a standard basic rack.
 _ISO_CM = 0.8  # theoretical-to-measured correction

@@ -1,7 +1,7 @@
 """Bayesian posterior of the identified parameters by affine-invariant ensemble MCMC (emcee).
 
 The target is the posterior density in the fit's unconstrained coordinates ``z``
-(:class:`~rattlefit.parameters.ParameterSpec`: ``v = lower·(upper/lower)^sigmoid(z)``),
+(:class:`~rattlefit.inference.parameters.ParameterSpec`: ``v = lower·(upper/lower)^sigmoid(z)``),
 
     log p(z | d) = −½ Σ (row_scale · W · (d − μ̄_M(z)) / σ)² + log π(v(z)) + Σ log |∂log v/∂z|,
 
@@ -10,7 +10,7 @@ The target is the posterior density in the fit's unconstrained coordinates ``z``
   deterministic function of ``z``. This is a Gaussian synthetic likelihood (Wood 2010; Price
   et al. 2018) whose band spread ``σ`` (which holds the Monte Carlo variance of an
   M-realisation mean), band correlations ``W`` and per-recording χ² inflation are those of the
-  fit at its optimum (:class:`~rattlefit.fit.NoiseModel`). Re-estimating them at every point
+  fit at its optimum (:class:`~rattlefit.inference.fit.NoiseModel`). Re-estimating them at every point
   would make the target itself noisy, and a noisy target makes ensemble MCMC sticky.
 * priors ``π``: log-uniform over the range for the free parameters (``a``, ``drag_torque``);
   log-normal (``center``, ``log_sd``) truncated to the range for the nuisance parameters
@@ -41,11 +41,11 @@ import emcee
 import h5py
 import numpy as np
 
-from .errors import RattlefitError
+from ..errors import RattlefitError
+from ..io.recording import Recording
+from ..reproducibility import platform_info
 from .fit import FitOptions, FitResult, NoiseModel, _build, _evaluate, identify
 from .parameters import ParameterSpec
-from .recording import Recording
-from .reproducibility import platform_info
 
 #: Walkers beyond this |z| have a value within e^-20 of its range's end: zero density there.
 Z_LIMIT = 20.0
@@ -428,7 +428,7 @@ def sample(
 ) -> Posterior:
     """Sample the posterior of ``a``, ``drag_torque``, the viscosity and the nuisances.
 
-    ``fit`` is :func:`~rattlefit.fit.identify`'s result on the same recordings (run here with
+    ``fit`` is :func:`~rattlefit.inference.fit.identify`'s result on the same recordings (run here with
     ``options.fit`` when not given); its optimum and Laplace covariance start the walkers and
     its noise model weights the bands. With ``backend`` (an HDF5 path) the chain is saved as it
     runs; if that file already holds a chain of these recordings, it is continued to

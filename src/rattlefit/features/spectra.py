@@ -16,7 +16,7 @@ import math
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from ._util import array_namespace
+from ..util import array_namespace
 
 #: Frequency band of the gear rattle index, eq. (10) of the seed paper, Hz.
 IGR_BAND_HZ = (20.0, 5000.0)
@@ -99,7 +99,7 @@ def welch_psd(
     """One-sided Welch PSD (rad²/Hz): Hann window, 50 % overlap, each segment's mean removed.
 
     Matches ``scipy.signal.welch(x, fs, nperseg=segment_length)`` (its defaults). Computed
-    in numpy for concrete input and in JAX while traced (:func:`~rattlefit._util.array_namespace`),
+    in numpy for concrete input and in JAX while traced (:func:`~rattlefit.util.array_namespace`),
     as are the other spectra here: a recording's features then compile nothing.
     """
     xp = array_namespace(x)

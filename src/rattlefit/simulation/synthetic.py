@@ -12,12 +12,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .drive import Drive
-from .errors import RattlefitError
-from .geometry import GearGeometry, table2_pair
-from .model import PARAM_UNITS, Effect, RattleModel, RattleParams
-from .recording import GearPairSpec, OilSpec, OperatingPoint, Recording
-from .simulate import encoder_counts, raise_if_failed, simulate
+from ..errors import RattlefitError
+from ..io.recording import GearPairSpec, OilSpec, OperatingPoint, Recording
+from ..physics.drive import Drive
+from ..physics.geometry import GearGeometry, table2_pair
+from ..physics.model import PARAM_UNITS, Effect, RattleModel, RattleParams
+from .solve import encoder_counts, raise_if_failed, simulate
 
 #: The seed paper's oil, Table 3.
 PAPER_OIL = OilSpec(viscosity_40c_cst=156.5, viscosity_100c_cst=15.7, density_kg_m3=890.0)
@@ -64,7 +64,7 @@ def synthesize(
     The drive defaults to the commanded law of ``operating``. The backlash written in the
     metadata is the geometry's (as measured); the simulation uses ``params.backlash``, so a
     measurement error of the backlash can be imitated by making them differ. ``effects``
-    (:mod:`rattlefit.effects`) are added to the model; the truth names them in
+    (:mod:`rattlefit.physics.effects`) are added to the model; the truth names them in
     ``unmodelled_effects`` (comma-separated) and gives each fitted field as
     ``"<effect>.<field>"``.
     """
@@ -111,7 +111,7 @@ def synthesize(
     truth.update(
         {f"{name}_unit": unit for name, unit in PARAM_UNITS.items()},
         seed=int(seed),
-        generator="rattlefit.synthetic",
+        generator="rattlefit.simulation.synthetic",
         rtol=float(rtol),
     )
     if effects:  # flat, so that they fit the /truth group's attributes

@@ -1,6 +1,6 @@
 """Profile-likelihood intervals of a simulated, noisy cost.
 
-:func:`~rattlefit.fit.identify` reports each free parameter's 95 % interval from its cost
+:func:`~rattlefit.inference.fit.identify` reports each free parameter's 95 % interval from its cost
 profile: the cost with the parameter held at a value and the others re-optimised, against a
 threshold (:func:`profile_threshold`: χ²₁'s 95 % quantile plus an allowance for the Monte
 Carlo noise and chaotic roughness of a difference of two costs). The cost is a synthetic
@@ -16,7 +16,7 @@ the stages here are built to spend few of them:
    continuation, where its valley bends away from the scan's straight paths.
 
 A profile is a dict ``{t: (Δcost, z)}`` of values ``t`` (in the unconstrained coordinate z
-of :class:`~rattlefit.parameters.ParameterSpec`) to the cost above the optimum's and the
+of :class:`~rattlefit.inference.parameters.ParameterSpec`) to the cost above the optimum's and the
 point that attained it; :func:`profile_interval` reads its interval and the brackets of its
 ends. Costs come from callables that map points (N, P) to Δcosts (N,): :class:`ProfileCosts`
 in a fit, a closed form in the tests.
@@ -271,7 +271,7 @@ def profile_guesses(
 
     ``valley(i, near, t)`` adds points on a valley that the model's physics knows and that
     neither straight path follows (:data:`Valley`; in a fit, the film half-length traded
-    against the viscosity, :func:`rattlefit.fit.identify`); a guess within
+    against the viscosity, :func:`rattlefit.inference.fit.identify`); a guess within
     :data:`SCAN_SAME` of one already made is dropped.
     """
     z = np.asarray(z, dtype=float)

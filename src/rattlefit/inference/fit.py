@@ -9,7 +9,7 @@ by eye; :func:`identify` does it by least squares with optimistix's Levenberg–
   recording's backlash within its measurement uncertainty — fitted with their priors.
 
 Every parameter is bounded and fitted in an unconstrained coordinate ``z`` (logit of the log
-within its range: never clipped; :mod:`rattlefit.parameters`); parameters with a Gaussian
+within its range: never clipped; :mod:`rattlefit.inference.parameters`); parameters with a Gaussian
 prior on their log add a prior row to the residual, so the fit is a maximum a posteriori
 estimate.
 
@@ -21,7 +21,7 @@ Rattle is chaotic, which shapes three choices:
    (``σ² = s²_run (1 + 1/M)`` with a floor). The same seeded realisations are used at every
    evaluation (common random numbers), so the objective is deterministic. Realisations that
    settle into another regime (far from the ensemble median in every band) are set aside
-   from the mean and the spread (:mod:`rattlefit.ensemble`, ``FitOptions.regime_threshold``).
+   from the mean and the spread (:mod:`rattlefit.features.ensemble`, ``FitOptions.regime_threshold``).
 2. **Jacobian.** Pathwise derivatives of a chaotic trajectory grow like e^{λt} (measured here:
    forward-mode sensitivities of 3 s of rattle reach 1e65), so the Jacobian that the
    Gauss–Newton model uses is a difference of the ensemble-mean features at a finite step
@@ -39,7 +39,7 @@ recording the model misses does not widen what another one measures well), and m
 of noisy ensemble means, and its expected noise, estimated from the paired realisations, is
 removed from ``JᵀJ`` so that noise does not pass for information. The Laplace interval is
 local and Gaussian, so the intervals of the free parameters (``a``, ``drag_torque``) come
-from their cost profiles over the whole range (:mod:`rattlefit.profile`: a scan, bisection
+from their cost profiles over the whole range (:mod:`rattlefit.inference.profile`: a scan, bisection
 of the ends, and at the values that decide them the other parameters re-optimised, as a
 profile likelihood requires, then followed past the ends by continuation). A parameter
 whose interval runs into its range's end is reported as *not identified*, with the one-sided
@@ -65,18 +65,27 @@ import optimistix as optx
 from scipy import stats
 from scipy.stats import qmc
 
-from . import ensemble
-from ._util import array_namespace, stamped
-from .ensemble import chaotic_part, ensemble_mean, regime_weights, shrunk_correlation
-from .errors import RattlefitError
-from .model import (
+from ..errors import RattlefitError
+from ..features import ensemble
+from ..features.ensemble import chaotic_part, ensemble_mean, regime_weights, shrunk_correlation
+from ..features.spectra import spectral_features
+from ..io.recording import Recording
+from ..physics.model import (
     Effect,
     RattleModel,
     RattleParams,
     equivalent_viscosity,
     share_stiffness_tables,
 )
-from .parallel import map_blocks
+from ..reproducibility import platform_info
+from ..simulation.parallel import map_blocks
+from ..simulation.solve import (
+    _static_options,
+    absolute_tolerances,
+    quantised_relative_motion,
+    solve_rows,
+)
+from ..util import array_namespace, stamped
 from .parameters import (
     Z_END,
     ParameterSpec,
@@ -101,16 +110,7 @@ from .profile import (
     profile_threshold,
     span_profile_points,
 )
-from .recording import Recording
-from .reproducibility import platform_info
 from .rig import RigSetup, setup
-from .simulate import (
-    _static_options,
-    absolute_tolerances,
-    quantised_relative_motion,
-    solve_rows,
-)
-from .spectra import spectral_features
 
 #: χ² p-value below which a fit is flagged as poor (:attr:`FitResult.poor_fit`).
 POOR_FIT_P = 1e-3
@@ -127,7 +127,7 @@ class FitOptions:
         over a small neighbourhood makes the expected features, and the fit, well posed.
         The offsets are centred (zero mean over the realisations, so they do not shift the
         mean features to first order) and their share of the realisations' spread is
-        regressed out of the band weights (:func:`~rattlefit.ensemble.chaotic_part`).
+        regressed out of the band weights (:func:`~rattlefit.features.ensemble.chaotic_part`).
         Measured on a synthetic pair II backlash sweep (boundary, 10 % at 8 Hz, 65.0 and
         65.4 mm, seed 0): with 0.2 the joint fit's T_b interval was 0.74 wide in log, wider
         than the single 65.4 mm file's 0.57; with 0.1 it was 0.16 against 0.55, χ² 57 on 58,
@@ -357,7 +357,7 @@ class FitOptions:
     seed : seeds the release positions and the starts (reported in the result).
     rtol : simulator tolerance (the absolute ones are ``rtol`` times 1 mm for q and, with an
         oil film, 30 mm/s for v, for dry flanks 1 mm/s:
-        :func:`rattlefit.simulate.absolute_tolerances`). 1e-4 matches the band
+        :func:`rattlefit.simulation.solve.absolute_tolerances`). 1e-4 matches the band
         features of the sharp scipy reference at six of the seven shared operating points
         (benchmarks/README) for 0.65× the steps, but measured in session 11 it moved two
         seeded CI checks off their truth (the mild synthetic file's ``a`` lower end 90 µm
@@ -379,7 +379,7 @@ class FitOptions:
         (to 368 on 28 on a synthetic mild file) and with it every interval.
     regime_threshold : realisations whose features lie further than this from the ensemble
         median (mean squared robust z over the bands, see
-        :func:`~rattlefit.ensemble.regime_weights`) are taken to be in another regime and set
+        :func:`~rattlefit.features.ensemble.regime_weights`) are taken to be in another regime and set
         aside from the mean features and their spread; ``None`` keeps every realisation.
         Measured on the pair I dry coverage cases, where about one realisation in eight
         settles into a regime with d² of 15–45: with every realisation kept the fit put ``a``
@@ -387,7 +387,7 @@ class FitOptions:
     regime : which regime the mean features and their spread describe where the realisations
         split: ``"recording"`` (default) the one the recording is in, when its nearest
         realisation lies outside the common regime and at least two realisations, and a sixth
-        of them, share that regime (:func:`~rattlefit.ensemble.regime_weights` with a target);
+        of them, share that regime (:func:`~rattlefit.features.ensemble.regime_weights` with a target);
         ``"common"`` the regime most realisations share, as before session 23. Coexisting
         attractors are common in rattle, and which one a rig is on is its history's choice,
         not a parameter's. Measured (seed 0, 2 devices, session 23): the coverage study holds
@@ -458,7 +458,7 @@ class FitOptions:
         """The defaults with the profile stage cut to its coarse scan (no bisection, polish,
         roughness allowance or re-centring): the Levenberg–Marquardt optimum and noise model
         of the defaults, with intervals from the scan alone, for callers that need the
-        optimum and not the intervals (:func:`rattlefit.diagnose.diagnose`, which re-fits a
+        optimum and not the intervals (:func:`rattlefit.diagnosis.diagnose.diagnose`, which re-fits a
         and T_b itself); the scan makes no ``profile_valley`` guesses. Measured (session
         16, joint fit of a backlash sweep): the bisection and the polish took 200 of the
         645 s to the end of the first profile stage."""
@@ -553,7 +553,7 @@ class ParameterEstimate:
 @dataclasses.dataclass(frozen=True)
 class NoiseModel:
     """How the data rows are weighted, fixed at the optimum: the Laplace covariance, the
-    profile scan and the posterior (:mod:`rattlefit.sample`) all use it.
+    profile scan and the posterior (:mod:`rattlefit.inference.posterior`) all use it.
 
     sigma : (R, B) each band's standard deviation (log10): the run-to-run spread of one
         recording's features plus the Monte Carlo error of an M-realisation mean, floored.
@@ -563,7 +563,7 @@ class NoiseModel:
         recording's reduced χ² where it exceeds one (a Birge ratio per recording).
     chi2_recordings : (R,) each recording's χ² at the optimum, before inflation.
     sigma_dof : degrees of freedom of the spread estimate
-        (:func:`~rattlefit.ensemble.chaotic_part`).
+        (:func:`~rattlefit.features.ensemble.chaotic_part`).
     regime_share : (R,) the share of the realisations at the optimum that are in the regime
         each recording is compared with (``FitOptions.regime``); below one half the recording
         is in a regime rarer than another that the model reaches there.
@@ -629,10 +629,10 @@ class FitResult:
     #: each recording's :attr:`NoiseModel.regime_share`: below one half it is in a regime that
     #: fewer of the model's releases reach at the optimum than another
     regime_share: list[float] = dataclasses.field(default_factory=list)
-    #: the data rows' weighting at the optimum, shared with :func:`rattlefit.sample.sample`
+    #: the data rows' weighting at the optimum, shared with :func:`rattlefit.inference.posterior.sample`
     noise: NoiseModel | None = dataclasses.field(default=None, repr=False, compare=False)
     #: what set the profile intervals' ends: ``threshold`` (the Δcost above the optimum's
-    #: that ends a profile interval, :func:`~rattlefit.profile.profile_threshold`),
+    #: that ends a profile interval, :func:`~rattlefit.inference.profile.profile_threshold`),
     #: ``monte_carlo_sd`` (its analytic noise allowance's sd) and, with
     #: ``FitOptions.profile_roughness``, ``roughness_rms`` (the rms Δcost 1–2 % from the
     #: optimum), ``realisation_sets`` and, with more than one, ``roughness_sd`` (their spread
@@ -788,7 +788,7 @@ class _Problem(eqx.Module):
 
     def dither_offsets(self, m) -> np.ndarray:
         """The dithered columns of :meth:`_dither` (m, q), for
-        :func:`~rattlefit.ensemble.chaotic_part`."""
+        :func:`~rattlefit.features.ensemble.chaotic_part`."""
         d = self._dither(m)
         return d[:, np.any(d != 0, axis=0)]
 
@@ -796,7 +796,7 @@ class _Problem(eqx.Module):
         """Features of every row (see :meth:`rows`): (N, B).
 
         Each device's share of the rows is solved in one lockstep batch
-        (:func:`~rattlefit.simulate.solve_rows`); every row has its own recording's model and
+        (:func:`~rattlefit.simulation.solve.solve_rows`); every row has its own recording's model and
         drive, its parameters and its release state.
         """
         opts = dict(self.static)
@@ -837,7 +837,7 @@ class _Problem(eqx.Module):
 
     def mean_of(self, features):
         """Mean features of the realisations (second-last axis) in the regime kept: the
-        recording's own (:func:`~rattlefit.ensemble.regime_weights`), or the common one."""
+        recording's own (:func:`~rattlefit.features.ensemble.regime_weights`), or the common one."""
         return ensemble_mean(features, self.regime_threshold, self.regime_target())
 
     def prior_rows(self, z):
@@ -1147,9 +1147,9 @@ VALLEY_GAPS = (2.0, 3.0, 4.5, 7.0)
 
 
 def _film_valley(problem: _Problem):
-    """The :data:`~rattlefit.profile.Valley` of the film half-lengths: at a new value of a
+    """The :data:`~rattlefit.inference.profile.Valley` of the film half-lengths: at a new value of a
     film's ``a``, the viscosity factor that keeps the squeeze coefficient unchanged at each
-    gap of :data:`VALLEY_GAPS` × ``h_min`` (:func:`~rattlefit.model.equivalent_viscosity`,
+    gap of :data:`VALLEY_GAPS` × ``h_min`` (:func:`~rattlefit.physics.model.equivalent_viscosity`,
     with the curvature radius of that film's first recording), where it stays inside its
     range. Other parameters get no guesses."""
     specs = problem.specs
@@ -1360,7 +1360,7 @@ def _ensemble(problem: _Problem, z, n: int, rng) -> np.ndarray:
 
 def _band_sigma(problem: _Problem, options: FitOptions, ens) -> np.ndarray:
     """The band spread (R, B) of one recording's features from the realisations ``ens``
-    (R, n, B) (:func:`~rattlefit.ensemble.band_sigma` with the fit's options)."""
+    (R, n, B) (:func:`~rattlefit.features.ensemble.band_sigma` with the fit's options)."""
     return ensemble.band_sigma(
         ens,
         options.n_realisations,

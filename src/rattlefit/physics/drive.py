@@ -20,9 +20,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from ._util import concrete
+from ..errors import ParameterError
+from ..util import concrete
 from .elementary import sin_cos_cycles
-from .errors import ParameterError
 
 
 class Drive(eqx.Module):
@@ -123,7 +123,7 @@ class Drive(eqx.Module):
 
         The same series as :meth:`angle` and :meth:`acceleration`, with the harmonics'
         cosines and sines from one cosine and sine by the angle-addition recurrence, and
-        those two from the phase f·t in cycles by :func:`~rattlefit.elementary.sin_cos_cycles`
+        those two from the phase f·t in cycles by :func:`~rattlefit.physics.elementary.sin_cos_cycles`
         (polynomials that vectorise, where ``jnp.sin`` and ``jnp.cos`` are a library call a
         value on a CPU).
         """

@@ -9,7 +9,7 @@ executes anything, which is why the command-line interface calls it first thing 
 runs its share with ``jax.lax.map``. With one device :func:`map_rows` is exactly
 ``jax.lax.map``, so its results never depend on whether the cores were enabled (measured: the
 features agree to the last bit). :func:`map_blocks` gives each device its whole share at once,
-for the lockstep integrator of :mod:`rattlefit.integrate`; a vectorised transcendental may
+for the lockstep integrator of :mod:`rattlefit.simulation.lockstep`; a vectorised transcendental may
 round differently in another batch layout, and rattle's chaos grows that into another
 realisation, so results computed that way (every fit) are reproducible for a given seed and
 device count.
@@ -70,7 +70,7 @@ def map_blocks(fn: Callable, rows):
     """``fn(rows)`` for a batched ``fn``, with the rows split evenly over all local devices.
 
     Each device applies ``fn`` to its whole share at once (for a vectorised computation such
-    as :func:`rattlefit.integrate.solve_lockstep`); the rows are padded and unpadded as in
+    as :func:`rattlefit.simulation.lockstep.solve_lockstep`); the rows are padded and unpadded as in
     :func:`map_rows`, whose one-row-at-a-time loop is the special case.
     """
     devices = jax.local_devices()

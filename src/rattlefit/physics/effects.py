@@ -1,10 +1,10 @@
 """Physical effects outside the seed paper's one-dof model, each a self-contained plug-in.
 
-Every effect is an :class:`~rattlefit.model.Effect`: an immutable module whose array fields
+Every effect is an :class:`~rattlefit.physics.model.Effect`: an immutable module whose array fields
 are its parameters (SI units) and which changes the model through one of three hooks — a
 kinematic error of the flank gap, an extra force on the pitch circle, or parameters that
 change in time. Add one to a model with ``model.with_effects(Runout(...))``; nothing else in
-the simulator knows about it. :func:`rattlefit.diagnose.diagnose` fits each effect in
+the simulator knows about it. :func:`rattlefit.diagnosis.diagnose.diagnose` fits each effect in
 :data:`EFFECTS` on top of an identification and reports how much of the misfit it removes.
 
 Each class declares ``ranges``: its fitted fields with (unit, lower, upper). The lower end
@@ -25,7 +25,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .errors import RattlefitError
+from ..errors import RattlefitError
 from .model import Effect, RattleModel, RattleParams
 
 Scalar = Float[Array, ""]
