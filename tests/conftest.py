@@ -19,6 +19,29 @@ os.environ.setdefault("RATTLEFIT_CACHE_DIR", "off")
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "recordings"
 
+#: Tests marked ``@pytest.mark.slow`` are identifications too long for the CI time budget:
+#: skipped unless ``--run-slow`` is given or this variable is set (to anything but 0).
+SLOW_ENV = "RATTLEFIT_SLOW"
+SLOW_REASON = f"slow: run with --run-slow (or {SLOW_ENV}=1)"
+
+
+def pytest_addoption(parser):
+    parser.addoption(
+        "--run-slow",
+        action="store_true",
+        default=False,
+        help=f"also run the tests marked slow (long identifications; or set {SLOW_ENV}=1)",
+    )
+
+
+def pytest_collection_modifyitems(config, items):
+    if config.getoption("--run-slow") or os.environ.get(SLOW_ENV, "") not in ("", "0"):
+        return
+    skip = pytest.mark.skip(reason=SLOW_REASON)
+    for item in items:
+        if item.get_closest_marker("slow") is not None:
+            item.add_marker(skip)
+
 
 @pytest.fixture(scope="session")
 def shared_recordings() -> Path:

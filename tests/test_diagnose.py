@@ -5,7 +5,6 @@ added, so the truth is known); the fit and the diagnosis use the paper's model w
 """
 
 import json
-import os
 
 import numpy as np
 import pytest
@@ -102,13 +101,9 @@ def test_diagnose_names_withheld_flank_friction_and_sizes_it(tmp_path):
     assert not list(tmp_path.glob("**/*.tmp"))
 
 
-@pytest.mark.skipif(
-    not os.environ.get("RATTLEFIT_SLOW"),
-    reason="CI time budget (the clean-clone run reached 24 min with it): run with "
-    "RATTLEFIT_SLOW=1 (passed in session 8, 172–225 s on one core, and in session 14 with "
-    "the extra drag starts, 294 s beside another job). In CI the withheld-"
-    "friction test checks that no wrong effect removes as much misfit as the withheld one.",
-)
+# In CI the withheld-friction test checks that no wrong effect removes as much misfit as the
+# withheld one; this control, a diagnosis of its own, runs with --run-slow.
+@pytest.mark.slow
 def test_diagnose_supports_nothing_when_nothing_is_withheld():
     # The control: a recording of the paper's model itself (pair II, 65.0 mm, 10 % at 8 Hz,
     # the mild rattle of tests/test_fit.py). No effect may be supported.

@@ -7,7 +7,6 @@ compares the reported 95 % intervals with a truth the fit never saw.
 import functools
 import json
 import math
-import os
 
 import equinox as eqx
 import jax
@@ -122,11 +121,7 @@ def test_an_oil_jet_companion_identifies_the_boundary_film(mild_recording):
     assert list(doc["parameters"])[:4] == ["a[boundary]", "a[oil_jet]", "drag_torque", "viscosity"]
 
 
-@pytest.mark.skipif(
-    not os.environ.get("RATTLEFIT_SLOW"),
-    reason="one fit, 456 s on one JAX device in CI (session 18); the joint fit with an oil-jet "
-    "companion above covers its recording in CI",
-)
+@pytest.mark.slow  # one fit; in CI the joint fit with an oil-jet companion covers its recording
 def test_mild_rattle_tells_the_film_from_dry_flanks(mild_recording):
     rec, truth = mild_recording
     result = identify([rec], FitOptions(seed=0))
@@ -153,11 +148,7 @@ def test_mild_rattle_tells_the_film_from_dry_flanks(mild_recording):
     json.dumps(doc)  # serialisable
 
 
-@pytest.mark.skipif(
-    not os.environ.get("RATTLEFIT_SLOW"),
-    reason="CI time budget: run with RATTLEFIT_SLOW=1 (one fit; 149 s on one core in session "
-    "26's CI, 213–308 s on the slower CPU since session 27)",
-)
+@pytest.mark.slow  # one fit
 def test_dry_flanks_are_not_given_a_film():
     # pair I, dry (a = 0), 10 % at 8 Hz: a weak film fits about as well as none, so the fit
     # must not claim a film: a is not identified, and its interval reaches films too short to
@@ -186,11 +177,7 @@ def test_dry_flanks_are_not_given_a_film():
     assert all(_covered(result, truth).values()), result.parameters
 
 
-@pytest.mark.skipif(
-    not os.environ.get("RATTLEFIT_SLOW"),
-    reason="eight fits (two fit seeds × three singles and the joint), 25–30 min on one JAX "
-    "device beside another fit (session 36); run with RATTLEFIT_SLOW=1",
-)
+@pytest.mark.slow  # eight fits: two fit seeds × (three singles and the joint)
 def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque_on_average():
     # Issue 3: "a joint fit of a backlash sweep must tighten the intervals compared with the
     # single recordings". The paper's sweep (Figs. 10–12): pair II in boundary lubrication,
@@ -230,48 +217,17 @@ def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque_on_average():
     assert mean[-1] < np.min(mean[:-1]), widths
 
 
-# the independent simulator's files whose truth lists no extra effects (all five)
-# Four of the five run only with RATTLEFIT_SLOW=1, to keep CI under its time budget (each fit
-# takes 4–9 min on one core). Measured in session 5 (seed 0, one device, quantisation
-# "encoders", dither 0.1): four of five hold their truth, the pair II oil-jet file misses T_b
-# (an xfail until session 25, below; in session 4, with the white floor and dither 0.2, all
-# five held it but the synthetic mild file missed T_b). CI keeps the pair I oil-jet file and,
-# through the synthetic tests above, the mild and dry cases; the other four run with
-# RATTLEFIT_SLOW=1
-# (session 15: the whole suite took 25 min on 2 workers with the pair I boundary file in it).
-_SLOW_ONLY = pytest.mark.skipif(
-    not os.environ.get("RATTLEFIT_SLOW"),
-    reason="CI time budget: run with RATTLEFIT_SLOW=1 (passed in session 6, 545–638 s each)",
-)
+# The independent simulator's files whose truth lists no extra effects (all five). CI fits the
+# pair I oil-jet file; the other four are slow (and the synthetic tests above cover the mild
+# and dry cases in CI).
 SHARED_CASES = [
-    pytest.param("pairII_boundary_65.0_10pct_8Hz", marks=_SLOW_ONLY),
-    pytest.param("pairII_boundary_65.6_20pct_16Hz", marks=_SLOW_ONLY),
-    # The pair II oil-jet file was an xfail from session 5 to 24 (T_b, then a, missed: its
-    # recording is in a regime this model reaches only in pockets near its truth; see
-    # benchmarks/README from "The pair II oil-jet shared file" on). Since session 25 the
-    # profiles follow their valleys past the ends (profile_continuation=4), and its fit, still
-    # a flagged poor fit (χ² 332 on 28), reports intervals that hold all three truths: a
-    # [0.043, 5] mm, T_b [0.0048, 0.094] N m, μ [0.22, 0.58] Pa s on two devices; passed
-    # on one device in 248 s. On session 36's AVX-512 Xeon (χ² 92.6) the continuation fell
-    # off the valley at 0.85 mm and a missed 1 mm; since session 37 the profiles also step
-    # along the film's valley in (a, μ) (FitOptions.profile_valley): a ≥ 0.155 mm, 72 s.
-    pytest.param(
-        "pairII_oiljet_65.6_20pct_16Hz",
-        marks=pytest.mark.skipif(
-            not os.environ.get("RATTLEFIT_SLOW"),
-            reason="CI time budget: run with RATTLEFIT_SLOW=1 (one fit, 248 s on one device "
-            "in session 25)",
-        ),
-    ),
-    pytest.param(
-        "pairI_boundary_66.0_20pct_16Hz",
-        marks=pytest.mark.skipif(
-            not os.environ.get("RATTLEFIT_SLOW"),
-            reason="CI time budget: run with RATTLEFIT_SLOW=1 (passed in CI through session 14, "
-            "308 s on one core in session 15; moved out of CI when the suite reached 25 min "
-            "on this 2-core machine)",
-        ),
-    ),
+    pytest.param("pairII_boundary_65.0_10pct_8Hz", marks=pytest.mark.slow),
+    pytest.param("pairII_boundary_65.6_20pct_16Hz", marks=pytest.mark.slow),
+    # a flagged poor fit: its recording is in a regime this model reaches only in pockets near
+    # its truth, so its intervals hold the truth only because the profiles follow the film's
+    # valley in (a, μ) past the ends (FitOptions.profile_continuation and profile_valley)
+    pytest.param("pairII_oiljet_65.6_20pct_16Hz", marks=pytest.mark.slow),
+    pytest.param("pairI_boundary_66.0_20pct_16Hz", marks=pytest.mark.slow),
     "pairI_oiljet_65.4_20pct_8Hz",
 ]
 

@@ -2,12 +2,11 @@
 
 The sampler's parts that do not simulate (priors and their Jacobian, the weighted Gaussian
 likelihood, the chain loop and its HDF5 backend) are checked on targets whose posterior is
-known in closed form; the synthetic-recording check of the whole posterior runs with
-RATTLEFIT_SLOW=1.
+known in closed form; the synthetic-recording check of the whole posterior is marked slow
+(run it with --run-slow).
 """
 
 import math
-import os
 
 import emcee
 import h5py
@@ -191,10 +190,7 @@ def test_a_foreign_hdf5_file_is_refused_and_kept(tmp_path, small_recording):
         np.testing.assert_array_equal(f["x"][:], np.arange(3))
 
 
-@pytest.mark.skipif(
-    not os.environ.get("RATTLEFIT_SLOW"),
-    reason="a fit and a 6-parameter chain (~25 min on 2 cores); run with RATTLEFIT_SLOW=1",
-)
+@pytest.mark.slow  # a fit and a 6-parameter chain
 def test_posterior_of_a_synthetic_recording_holds_the_truth(tmp_path):
     g = rf.table2_pair("II", center_distance_mm=65.0)
     op = OperatingPoint("boundary", 20.0, 52.36, 5.236, 8.0)
