@@ -1,6 +1,6 @@
-"""The fitted parameters' coordinates and priors (:mod:`rattlefit.inference.parameters`), against closed
-forms: the map from z is ``lower · (upper/lower)^sigmoid(z)``, its log-derivative
-``log(upper/lower) · s(1 − s)``, and the priors' rows are log-normal."""
+"""The fitted parameters' coordinates and priors (:mod:`rattlefit.inference.parameters`),
+against closed forms: the map from z is ``lower · (upper/lower)^sigmoid(z)``, its
+log-derivative ``log(upper/lower) · s(1 − s)``, and the priors' rows are log-normal."""
 
 import math
 

@@ -1,4 +1,5 @@
-"""Tests of rattlefit.simulation.reference, the sharp-switching scipy reference solver, vs closed forms."""
+"""rattlefit.simulation.reference, the sharp-switching scipy reference solver, against closed
+forms."""
 
 from __future__ import annotations
 
