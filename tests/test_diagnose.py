@@ -1,7 +1,8 @@
 """rattlefit diagnose: proven on recordings whose effect the model withholds.
 
-The recordings are synthetic (rattlefit's simulator with an effect of :mod:`rattlefit.physics.effects`
-added, so the truth is known); the fit and the diagnosis use the paper's model without it.
+The recordings are synthetic (rattlefit's simulator with an effect of
+:mod:`rattlefit.physics.effects` added, so the truth is known); the fit and the diagnosis use
+the paper's model without it.
 """
 
 import json
@@ -11,6 +12,7 @@ import pytest
 from click.testing import CliRunner
 
 import rattlefit as rf
+from rattlefit import FitOptions, synthesize
 from rattlefit.cli import main
 from rattlefit.diagnosis.diagnose import (
     FREE_FACTORS,
@@ -24,10 +26,9 @@ from rattlefit.diagnosis.diagnose import (
     effect_specs,
 )
 from rattlefit.errors import RattlefitError
-from rattlefit.inference.fit import FitOptions, _build
+from rattlefit.inference.problem import build_problem
 from rattlefit.io.recording import OperatingPoint, write_recording
 from rattlefit.physics import effects as fx
-from rattlefit.simulation.synthetic import synthesize
 
 #: The effects tried in the CI tests: the withheld one and two that could mimic it (a
 #: gap error at the mesh order, a gap error per revolution), to keep CI short.
@@ -126,7 +127,7 @@ def test_diagnose_supports_nothing_when_nothing_is_withheld():
 
 def test_screen_points_try_each_field_alone_and_together_with_less_film_and_drag():
     rec, _ = _dry_pair2([])
-    problem, _ = _build([rec], FitOptions.quick(), np.random.default_rng(0))
+    problem, _ = build_problem([rec], FitOptions.quick(), np.random.default_rng(0))
     specs = effect_specs("runout")
     p0 = len(problem.specs)
     z_off = np.concatenate([np.zeros(p0), np.full(len(specs), -8.0)])
@@ -150,7 +151,7 @@ def test_screen_points_try_each_field_alone_and_together_with_less_film_and_drag
 
 def test_baseline_refit_starts_from_the_identification_and_the_free_alternatives():
     rec, _ = _dry_pair2([])
-    problem, _ = _build([rec], FitOptions.quick(), np.random.default_rng(0))
+    problem, _ = build_problem([rec], FitOptions.quick(), np.random.default_rng(0))
     z = np.linspace(-0.5, 0.5, len(problem.specs))
     alts = _free_alternatives(z, problem)
     assert alts.shape == (len(FREE_FACTORS), len(z))

@@ -16,33 +16,25 @@ import optimistix as optx
 import pytest
 
 import rattlefit as rf
-from rattlefit.features.ensemble import band_sigma as _band_sigma
-from rattlefit.features.ensemble import chaotic_part as _chaotic_part
-from rattlefit.features.ensemble import shrunk_correlation
-from rattlefit.inference.fit import (
+from rattlefit import FitOptions, identify, read_recording, synthesize
+from rattlefit.features.ensemble import band_sigma, chaotic_part, shrunk_correlation
+from rattlefit.inference import forward
+from rattlefit.inference.laplace import debiased_information
+from rattlefit.inference.least_squares import (
     LM_REJECTIONS,
-    START_POINTS,
-    START_RANGES,
-    FitOptions,
-    _build,
-    _debiased_information,
-    _estimate,
-    _evaluate,
-    _levenberg_marquardt,
-    _lm_steps,
-    _screen_features,
-    _StallingLevenbergMarquardt,
-    _starting_points,
-    identify,
+    StallingLevenbergMarquardt,
+    levenberg_marquardt,
+    lm_steps,
 )
+from rattlefit.inference.noise import noise_model
 from rattlefit.inference.parameters import ParameterSpec, nuisance_prior
-from rattlefit.inference.profile import (
-    SCREEN_FACTOR,
-    ProfileCosts,
-)
-from rattlefit.io.recording import OperatingPoint, read_recording
+from rattlefit.inference.problem import build_problem
+from rattlefit.inference.profile import SCREEN_FACTOR, ProfileCosts
+from rattlefit.inference.result import IDENTIFIED_RATIO, estimate
+from rattlefit.inference.starts import START_POINTS, START_RANGES, starting_points
+from rattlefit.io.recording import OperatingPoint
 from rattlefit.physics.oil import dynamic_viscosity
-from rattlefit.simulation.synthetic import PAPER_OIL, backlash_sweep, synthesize
+from rattlefit.simulation.synthetic import PAPER_OIL, backlash_sweep
 
 TARGETS = ("a", "drag_torque", "viscosity")
 
@@ -270,27 +262,25 @@ def test_shrunk_correlation_is_positive_definite_and_consistent():
 
 
 def test_features_do_not_depend_on_how_the_rows_are_chunked(monkeypatch, mild_recording):
-    # _evaluate solves its rows in compiled chunks of fit.CHUNK_ROWS a device; every row has
+    # forward.evaluate solves its rows in compiled chunks of CHUNK_ROWS a device; every row has
     # its own step sizes, so the chunking must not change a trajectory (the seeded results
     # depend on it). 2 points × 6 realisations: 12 rows, in chunks of 24 (padded), of 8 (two
     # chunks, the last padded) and of 4 (three). (Chunks of other sizes compile to other code,
     # vectorised otherwise over the rows, whose rounding differs: measured in session 29,
     # chunks of 5 or 2 rows give every row another realisation. No evaluation uses them.)
-    import rattlefit.inference.fit as fit
-
-    problem, _ = _build([mild_recording[0]], FitOptions(), np.random.default_rng(0))
+    problem, _ = build_problem([mild_recording[0]], FitOptions(), np.random.default_rng(0))
     # (one recording: START_POINTS starts, the first of the longer sequence asked for)
-    starts = _starting_points(problem, None, np.random.default_rng(0))
+    starts = starting_points(problem, None, np.random.default_rng(0))
     assert starts.shape[0] == START_POINTS
-    more = _starting_points(problem, 2 * START_POINTS, np.random.default_rng(0))
+    more = starting_points(problem, 2 * START_POINTS, np.random.default_rng(0))
     np.testing.assert_array_equal(more[:START_POINTS], starts)
     zs = np.zeros((2, len(problem.specs)))
     zs[1, 0] = 0.5  # another film half-length: other step counts in the same chunk
-    zs[1, 1] = -0.3  # and a lower drag torque: _evaluate simulates it first
+    zs[1, 1] = -0.3  # and a lower drag torque: evaluate simulates it first
     out = {}
     for rows in (24, 8, 4):
-        monkeypatch.setattr(fit, "CHUNK_ROWS", rows)
-        out[rows] = _evaluate(problem, zs)
+        monkeypatch.setattr(forward, "CHUNK_ROWS", rows)
+        out[rows] = forward.evaluate(problem, zs)
     # the same trajectories: equal but for the spectral sums' last bits (a different
     # realisation would differ from the fourth digit)
     np.testing.assert_allclose(out[8], out[24], rtol=1e-13, atol=0)
@@ -298,10 +288,10 @@ def test_features_do_not_depend_on_how_the_rows_are_chunked(monkeypatch, mild_re
     assert out[24].shape == (2, 1, 6, problem.data.shape[1])
     assert not np.array_equal(out[24][0], out[24][1])  # the two points differ
     # each point's features come back in the caller's order: as simulated one at a time
-    alone = np.concatenate([_evaluate(problem, zs[k : k + 1]) for k in range(2)])
+    alone = np.concatenate([forward.evaluate(problem, zs[k : k + 1]) for k in range(2)])
     np.testing.assert_allclose(alone, out[24], rtol=1e-13, atol=0)
     # a point's realisations simulated in two parts (ProfileCosts) are the same simulations
-    parts = [_evaluate(problem, zs, realisations=r) for r in ([4, 0], [1, 2, 3, 5])]
+    parts = [forward.evaluate(problem, zs, realisations=r) for r in ([4, 0], [1, 2, 3, 5])]
     joined = np.concatenate(parts, axis=2)[:, :, [1, 2, 3, 4, 0, 5]]
     np.testing.assert_allclose(joined, out[24], rtol=1e-13, atol=0)
 
@@ -313,14 +303,12 @@ def test_host_side_arithmetic_compiles_nothing_and_equals_its_traced_form(mild_r
     # give what the same functions give traced inside the Levenberg–Marquardt loop.
     import jax
 
-    from rattlefit.inference.fit import _costs, _fd_jacobian, _fd_points
-
-    problem, _ = _build([mild_recording[0]], FitOptions(), np.random.default_rng(0))
+    problem, _ = build_problem([mild_recording[0]], FitOptions(), np.random.default_rng(0))
     rng = np.random.default_rng(5)
     p, (n_rec, n_band) = len(problem.specs), problem.data.shape
     z = rng.normal(scale=0.7, size=p)
     h = problem.fd_steps(z)
-    pts = _fd_points(z, h, central=True)
+    pts = forward.fd_points(z, h, central=True)
     per = np.asarray(problem.data)[None, :, None] + 0.1 * rng.normal(
         size=(len(pts), n_rec, 6, n_band)
     )
@@ -328,10 +316,10 @@ def test_host_side_arithmetic_compiles_nothing_and_equals_its_traced_form(mild_r
 
     def host():
         feats = problem.mean_of(per)
-        r, jac = _fd_jacobian(problem, z, h, feats, central=True)
-        sig = _band_sigma(per[0], 6, 0.02, np.asarray(problem.floors), 0.1, threshold=9.0)
+        r, jac = forward.fd_jacobian(problem, z, h, feats, central=True)
+        sig = band_sigma(per[0], 6, 0.02, np.asarray(problem.floors), 0.1, threshold=9.0)
         rows = problem.rows(pts[:2], realisations=[4, 1])
-        cost = _costs(problem, pts[:2], feats[:2])
+        cost = forward.costs(problem, pts[:2], feats[:2])
         return r, jac, feats, np.asarray(sig), rows, cost, problem.fd_steps(z)
 
     caplog.set_level("WARNING", logger="jax")
@@ -344,12 +332,12 @@ def test_host_side_arithmetic_compiles_nothing_and_equals_its_traced_form(mild_r
     @jax.jit
     def traced(z, per):
         h = problem.fd_steps(z)
-        r, jac = _fd_jacobian(problem, z, h, problem.mean_of(per), central=True)
+        r, jac = forward.fd_jacobian(problem, z, h, problem.mean_of(per), central=True)
         return (
             r,
             jac,
             jax.jacfwd(problem.prior_rows)(z),
-            problem.rows(_fd_points(z, h, central=True)[:2]),
+            problem.rows(forward.fd_points(z, h, central=True)[:2]),
         )
 
     r, jac, prior_jac, rows = traced(jnp.asarray(z), jnp.asarray(per))
@@ -373,17 +361,15 @@ def test_the_noise_model_reports_the_share_of_the_recordings_regime(mild_recordi
     # 4 of 24 realisations at the optimum in the recording's regime (a sixth, enough to be it):
     # the noise model is built on those four, and says that they are a sixth; with
     # regime="common" it is built on the other twenty
-    from rattlefit.inference.fit import _noise_model
-
     for regime, share in (("recording", 4 / 24), ("common", 20 / 24)):
         options = FitOptions(regime=regime)
-        problem, _ = _build([mild_recording[0]], options, np.random.default_rng(0))
+        problem, _ = build_problem([mild_recording[0]], options, np.random.default_rng(0))
         rng = np.random.default_rng(9)
         level = np.asarray(problem.data)[0]
         per = level + 0.1 * rng.standard_normal((1, 24, level.size))
         per[:, :4] += 0.8
         problem = eqx.tree_at(lambda q: q.data, problem, jnp.asarray(level + 0.8)[None])
-        noise = _noise_model(problem, per, np.zeros(level.size), 28.0)
+        noise = noise_model(problem, per, np.zeros(level.size), 28.0)
         assert noise.regime_share == pytest.approx([share])
         # the spread's degrees of freedom are those of the regime kept: four realisations
         # leave too few to regress out the dither offsets (3), twenty do (20 − 1 − q)
@@ -401,9 +387,7 @@ def test_profile_points_far_outside_are_set_aside_after_a_few_realisations(mild_
     # session 27, are not far enough in this cost: on an AMD EPYC without AVX-512, another
     # realisation, a film 10× the truth read Δcost 1.9 against a limit of 3.5 and a → 0 read
     # −1.8, while the drag torques read 35 and 308.)
-    import rattlefit.inference.fit as fit
-
-    problem, _ = _build([mild_recording[0]], FitOptions(), np.random.default_rng(0))
+    problem, _ = build_problem([mild_recording[0]], FitOptions(), np.random.default_rng(0))
     y0 = np.asarray(problem.y0)[:, [0, 1, 2, 3, 4, 5, 0, 1]]  # 8 realisations
     y0[:, 6:] *= 0.5  # the last two released elsewhere
     drag = problem.specs[1]
@@ -415,13 +399,13 @@ def test_profile_points_far_outside_are_set_aside_after_a_few_realisations(mild_
         return float(np.sum((np.asarray(problem.mean_of(per)) - np.asarray(problem.data)) ** 2))
 
     near = np.stack([z0, z0 + 0.01 * e1, z0 - 0.01 * e1])
-    per_near = _evaluate(problem, near, y0)
+    per_near = forward.evaluate(problem, near, y0)
     far = [drag.z_of(0.1), drag.z_of(0.25)]
     points = np.stack([z0, near[1], near[2], *(np.where(e1 == 1, t, z0) for t in far), z0 + 0.02])
-    evaluate = functools.partial(_evaluate, problem, y0=y0)
-    chunk = fit._chunk_size()
-    whole = ProfileCosts(evaluate, cost_of, per_near, near, threshold=0.05, screen=0, chunk=chunk)
-    raced = ProfileCosts(evaluate, cost_of, per_near, near, threshold=0.05, screen=4, chunk=chunk)
+    simulate = functools.partial(forward.evaluate, problem, y0=y0)
+    chunk = forward.chunk_size()
+    whole = ProfileCosts(simulate, cost_of, per_near, near, threshold=0.05, screen=0, chunk=chunk)
+    raced = ProfileCosts(simulate, cost_of, per_near, near, threshold=0.05, screen=4, chunk=chunk)
     assert whole.limit is None and raced.limit >= SCREEN_FACTOR * 0.05
     exact, dc = whole(points), raced(points)
     kept = dc <= raced.limit
@@ -457,7 +441,7 @@ def test_a_fit_across_lubrications_gives_each_its_film_and_shares_the_oil(
     # simulator's files): one film half-length per lubrication, one viscosity factor of the oil
     names = ["pairII_boundary_65.6_20pct_16Hz", "pairII_oiljet_65.6_20pct_16Hz"]
     recs = [read_recording(shared_recordings / f"{n}.h5") for n in names]
-    problem, _ = _build(recs, FitOptions.quick(), np.random.default_rng(0))
+    problem, _ = build_problem(recs, FitOptions.quick(), np.random.default_rng(0))
     spec_names = [s.name for s in problem.specs]
     assert spec_names[:3] == ["a[boundary]", "a[oil_jet]", "drag_torque"]
     assert problem.films == ("a[boundary]", "a[oil_jet]")
@@ -476,7 +460,7 @@ def test_a_fit_across_lubrications_gives_each_its_film_and_shares_the_oil(
         assert float(p.viscosity) == pytest.approx(mu, rel=0.01), name
     # each film half-length is a dimension of the starts: twice the starts of one, spread
     # over both films' ranges (log-uniform over START_RANGES, the rest at the prior centres)
-    starts = _starting_points(problem, None, np.random.default_rng(0))
+    starts = starting_points(problem, None, np.random.default_rng(0))
     assert starts.shape == (2 * START_POINTS, len(spec_names))
     for i in range(3):
         lo, hi = START_RANGES[i == 2]
@@ -486,17 +470,17 @@ def test_a_fit_across_lubrications_gives_each_its_film_and_shares_the_oil(
     # a prior on the single-lubrication name would replace nothing here: refused, not ignored
     film = ParameterSpec("a", "m", 1e-5, 1e-3)
     with pytest.raises(rf.RattlefitError, match="'a' is not a parameter of this fit"):
-        _build(recs, FitOptions.quick(priors={"a": film}), np.random.default_rng(0))
+        build_problem(recs, FitOptions.quick(priors={"a": film}), np.random.default_rng(0))
 
 
 def test_a_second_set_of_starts_spreads_the_nuisances_over_their_priors(mild_recording):
     # the first set as without it, with the nuisances at their prior medians; then as many
     # again, with each parameter that has a prior spread over its median × exp(±1 log_sd), end
     # to end and on both sides of the median, and (a, T_b) over their START_RANGES
-    problem, _ = _build([mild_recording[0]], FitOptions(), np.random.default_rng(0))
+    problem, _ = build_problem([mild_recording[0]], FitOptions(), np.random.default_rng(0))
     rng_flat, rng = np.random.default_rng(0), np.random.default_rng(0)
-    flat = _starting_points(problem, None, rng_flat)
-    starts = _starting_points(problem, None, rng, nuisance_starts=None)
+    flat = starting_points(problem, None, rng_flat)
+    starts = starting_points(problem, None, rng, nuisance_starts=None)
     assert flat.shape == (START_POINTS, len(problem.specs))
     assert starts.shape == (2 * START_POINTS, len(problem.specs))
     np.testing.assert_array_equal(starts[:START_POINTS], flat)
@@ -514,14 +498,14 @@ def test_a_second_set_of_starts_spreads_the_nuisances_over_their_priors(mild_rec
         span = math.log(hi / lo)
         assert np.all(v >= lo * (1 - 1e-9)) and np.all(v <= hi * (1 + 1e-9)), spec.name
         assert math.log(v.min() / lo) < 0.1 * span and math.log(hi / v.max()) < 0.1 * span
-    assert len(_starting_points(problem, 16, np.random.default_rng(0), nuisance_starts=8)) == 24
+    assert len(starting_points(problem, 16, np.random.default_rng(0), nuisance_starts=8)) == 24
     # a prior wider than the range (a caller's) spreads the starts only inside the range
     wide = nuisance_prior("viscosity_scale", 1.0, 3.0)
-    problem, _ = _build(
+    problem, _ = build_problem(
         [mild_recording[0]], FitOptions(priors={"viscosity_scale": wide}), np.random.default_rng(0)
     )
     i = [s.name for s in problem.specs].index("viscosity_scale")
-    starts = _starting_points(problem, None, np.random.default_rng(0), nuisance_starts=None)
+    starts = starting_points(problem, None, np.random.default_rng(0), nuisance_starts=None)
     v = np.array([problem.specs[i].value(t) for t in starts[START_POINTS:, i]])
     assert wide.lower < v.min() < 1.2 * wide.lower and wide.upper / 1.2 < v.max() < wide.upper
 
@@ -532,7 +516,7 @@ def test_starts_can_be_ranked_by_their_realisation_nearest_the_recording(mild_re
     # Their means rank start 1 first; ranked by the realisation nearest the recording
     # (FitOptions.screen "nearest"), start 0 is the one whose neighbourhood can reproduce the
     # recording, and ranks first.
-    problem, _ = _build([mild_recording[0]], FitOptions(), np.random.default_rng(0))
+    problem, _ = build_problem([mild_recording[0]], FitOptions(), np.random.default_rng(0))
     data = np.asarray(problem.data)
     problem = eqx.tree_at(lambda q: q.sigma, problem, jnp.full(data.shape, 0.1))
     f = np.empty((2, 1, 2, data.shape[1]))
@@ -540,7 +524,7 @@ def test_starts_can_be_ranked_by_their_realisation_nearest_the_recording(mild_re
     f[1] = data[:, None] + 0.06
     costs = {}
     for screen in ("nearest", "mean"):
-        screened = _screen_features(problem, f, screen)
+        screened = forward.screen_features(problem, f, screen)
         assert screened.shape == (2, 1, data.shape[1])
         costs[screen] = [np.sum(problem.data_rows(screened[k]) ** 2) for k in range(2)]
     assert costs["nearest"][0] < costs["nearest"][1]
@@ -555,38 +539,38 @@ def test_estimate_reports_bounds_and_identification():
     a = ParameterSpec("a", "m", 1e-6, 5e-3)
     z = a.z_of
     # two-sided and narrower than a factor 1.5 (about ±20 %): identified, with an estimate
-    e = _estimate(a, z(1e-4), z(0.85e-4), z(1.25e-4))
+    e = estimate(a, z(1e-4), z(0.85e-4), z(1.25e-4))
     assert e.identified and e.bound is None and e.estimate == pytest.approx(1e-4)
     assert (e.lower, e.upper) == pytest.approx((0.85e-4, 1.25e-4))
     # two-sided but wider: the interval, no estimate (a factor 1.75 is good to about ±30 %,
     # not to issue 3's 20 %)
     for lo, hi in ((0.8e-4, 1.4e-4), (0.4e-4, 2.5e-4)):
-        e = _estimate(a, z(1e-4), z(lo), z(hi))
+        e = estimate(a, z(1e-4), z(lo), z(hi))
         assert (e.identified, e.bound, e.estimate) == (False, "interval", None)
         assert (e.lower, e.upper) == pytest.approx((lo, hi))
     # into the lower end of a free parameter's range: an upper bound, and the lower reads 0
-    e = _estimate(a, z(1e-5), -8.0, z(5e-5))
+    e = estimate(a, z(1e-5), -8.0, z(5e-5))
     assert (e.bound, e.lower, e.estimate) == ("upper", 0.0, None)
     assert e.upper == pytest.approx(5e-5) and e.map_value == pytest.approx(1e-5)
     # into the upper end: a lower bound
-    e = _estimate(a, z(2e-3), z(5e-4), 8.0)
+    e = estimate(a, z(2e-3), z(5e-4), 8.0)
     assert (e.bound, e.upper) == ("lower", 5e-3) and e.lower == pytest.approx(5e-4)
     # a parameter with a prior: identified only if the data halve the prior's width
     v = ParameterSpec("viscosity_scale", "1", 0.2, 5.0, center=1.0, log_sd=0.25)
     half = np.exp(1.96 * 0.25)
-    e = _estimate(v, v.z_of(1.0), v.z_of(1 / half), v.z_of(half))
+    e = estimate(v, v.z_of(1.0), v.z_of(1 / half), v.z_of(half))
     assert (e.identified, e.bound) == (False, "prior")
     # prior-dominated but shifted off the prior's centre (session 28's joint backlash sweep:
     # [0.187, 0.483] Pa s about a catalogue 0.494, the truth): the prior's 95 % stays in
-    e = _estimate(v, v.z_of(0.61), v.z_of(0.378), v.z_of(0.977))
+    e = estimate(v, v.z_of(0.61), v.z_of(0.378), v.z_of(0.977))
     assert (e.identified, e.bound) == (False, "prior")
     assert (e.lower, e.upper) == pytest.approx((0.378, half), rel=1e-4)
-    e = _estimate(v, v.z_of(1.6), v.z_of(1.0), v.z_of(2.5))  # shifted up: only its lower end
+    e = estimate(v, v.z_of(1.6), v.z_of(1.0), v.z_of(2.5))  # shifted up: only its lower end
     assert (e.lower, e.upper) == pytest.approx((1 / half, 2.5), rel=1e-4)
-    e = _estimate(v, v.z_of(1.0), v.z_of(0.9), v.z_of(1.1))
+    e = estimate(v, v.z_of(1.0), v.z_of(0.9), v.z_of(1.1))
     assert e.identified and e.estimate == pytest.approx(1.0)
     # … and, like any parameter, to about ±20 %: within half the prior's width, but wider
-    e = _estimate(v, v.z_of(1.0), v.z_of(0.8), v.z_of(1.25))
+    e = estimate(v, v.z_of(1.0), v.z_of(0.8), v.z_of(1.25))
     assert (e.identified, e.bound) == (False, "interval")
 
 
@@ -596,8 +580,6 @@ def test_an_identified_estimate_lands_within_20_percent_as_often_as_the_interval
     # is N(0, w/1.96); at the widest identified interval it must stay within 20 % at least as
     # often as the coverage aim (90 %). Checked by simulation, not by the formula of the
     # constant's comment.
-    from rattlefit.inference.fit import IDENTIFIED_RATIO
-
     rng = np.random.default_rng(0)
     sd = np.log(IDENTIFIED_RATIO) / (2 * 1.96)
     est = np.exp(rng.normal(scale=sd, size=200_000))  # truth 1
@@ -622,16 +604,16 @@ def test_levenberg_marquardt_stops_once_its_trial_steps_keep_being_rejected():
 
     plain = solve(optx.LevenbergMarquardt(rtol=1e-2, atol=1e-2))
     assert int(plain.stats["num_steps"]) == 12 and plain.result != optx.RESULTS.successful
-    sol = solve(_StallingLevenbergMarquardt(rtol=1e-2, atol=1e-2))
+    sol = solve(StallingLevenbergMarquardt(rtol=1e-2, atol=1e-2))
     assert int(sol.stats["num_steps"]) == 1 + LM_REJECTIONS  # the start, then the rejections
-    assert sol.result == optx.RESULTS.successful and _StallingLevenbergMarquardt.stalled(sol.state)
+    assert sol.result == optx.RESULTS.successful and StallingLevenbergMarquardt.stalled(sol.state)
     np.testing.assert_array_equal(sol.value, y0)
     # and on a smooth problem it converges as optimistix's does
     smooth = optx.least_squares(
-        lambda y, _: y - 1.0, _StallingLevenbergMarquardt(rtol=1e-6, atol=1e-6), y0, max_steps=50
+        lambda y, _: y - 1.0, StallingLevenbergMarquardt(rtol=1e-6, atol=1e-6), y0, max_steps=50
     )
     np.testing.assert_allclose(smooth.value, 1.0, atol=1e-6)
-    assert not _StallingLevenbergMarquardt.stalled(smooth.state)
+    assert not StallingLevenbergMarquardt.stalled(smooth.state)
 
 
 def test_levenberg_marquardt_stepped_from_python_takes_optimistix_own_steps():
@@ -649,18 +631,18 @@ def test_levenberg_marquardt_stepped_from_python_takes_optimistix_own_steps():
 
     runs = {}
     for residual, max_steps in ((rosenbrock, 100), (rosenbrock, 5), (spiky, 12)):
-        solver = _StallingLevenbergMarquardt(rtol=1e-8, atol=1e-8)
+        solver = StallingLevenbergMarquardt(rtol=1e-8, atol=1e-8)
         ref = optx.least_squares(residual, solver, y0, max_steps=max_steps, throw=False)
 
         def jacobian_at(z, residual=residual):
             z = jnp.asarray(z)
             return np.asarray(residual(z)), np.asarray(jax.jacfwd(residual)(z))
 
-        z, steps, result, state = _levenberg_marquardt(jacobian_at, solver, y0, max_steps)
+        z, steps, result, state = levenberg_marquardt(jacobian_at, solver, y0, max_steps)
         assert steps == int(ref.stats["num_steps"])
         assert result == ref.result
-        assert bool(_StallingLevenbergMarquardt.stalled(state)) == bool(
-            _StallingLevenbergMarquardt.stalled(ref.state)
+        assert bool(StallingLevenbergMarquardt.stalled(state)) == bool(
+            StallingLevenbergMarquardt.stalled(ref.state)
         )
         np.testing.assert_allclose(z, ref.value, rtol=1e-12, atol=1e-12)
         runs[residual.__name__, max_steps] = (z, result)
@@ -684,7 +666,7 @@ def test_debiased_information_removes_the_jacobian_noise():
     for _ in range(trials):
         j = j0 + rng.normal(size=(n, p)) * noise_sd
         raw += j.T @ j / trials
-        fixed += _debiased_information(j, noise, np.zeros((0, p))) / trials
+        fixed += debiased_information(j, noise, np.zeros((0, p))) / trials
     truth = j0.T @ j0
     assert raw[2, 2] > 5 * truth[2, 2]  # the weak column looks informative when left noisy
     # corrected, the well-measured column is unbiased; the clip at zero information can only
@@ -693,7 +675,7 @@ def test_debiased_information_removes_the_jacobian_noise():
     assert fixed[2, 2] < 0.5 * raw[2, 2]
     # prior rows are exact and added after the correction
     prior = np.diag([0.0, 0.0, 2.0])
-    with_prior = _debiased_information(j0, np.zeros(p), prior)
+    with_prior = debiased_information(j0, np.zeros(p), prior)
     assert with_prior[2, 2] == pytest.approx(truth[2, 2] + 4.0, rel=1e-6)
 
 
@@ -703,7 +685,7 @@ def test_band_sigma_adds_the_floor_uncertainty_where_the_floor_dominates():
     # band 0 far above the floor, band 1 at it (share 1/2), band 2 all floor (share 1)
     level = np.log10(np.array([1e4, 2.0, 1.0]) * floor)
     ens = level + 0.05 * rng.standard_normal((1, 400, 3))
-    sig = np.asarray(_band_sigma(ens, m=6, floor=0.0, noise_floor=np.array([floor]), floor_sd=0.1))[
+    sig = np.asarray(band_sigma(ens, m=6, floor=0.0, noise_floor=np.array([floor]), floor_sd=0.1))[
         0
     ]
     run = np.std(ens[0], axis=0, ddof=1) * np.sqrt(1 + 1 / 6)
@@ -724,18 +706,18 @@ def test_band_sigma_removes_the_dither_spread():
     sens = rng.normal(size=(q, b)) * np.linspace(0.0, 2.0, b)  # ∂features/∂log-parameter
     chaos = 0.05 * rng.standard_normal((2000, n, b))
     ens = chaos + (offsets @ sens)[None]
-    dev, dof = _chaotic_part(ens, offsets)
+    dev, dof = chaotic_part(ens, offsets)
     assert np.all(dof == n - 1 - q)
     var = np.sum(dev**2, axis=1) / dof[:, None]  # unbiased over the 2000 trials
     assert var.mean(axis=0) == pytest.approx(np.full(b, 0.05**2), rel=0.03)
     raw = np.var(ens, axis=1, ddof=1).mean(axis=0)
     assert raw[-1] > 20 * 0.05**2  # left in, the dither's spread dominates sensitive bands
     sig = np.asarray(
-        _band_sigma(ens[:1], m=6, floor=0.0, noise_floor=np.zeros(1), floor_sd=0.0, offsets=offsets)
+        band_sigma(ens[:1], m=6, floor=0.0, noise_floor=np.zeros(1), floor_sd=0.0, offsets=offsets)
     )
     assert sig[0] == pytest.approx(np.sqrt(np.sum(dev[0] ** 2, axis=0) / dof[0] * (1 + 1 / 6)))
     # too few realisations for the regression: the plain spread, n − 1 dof
-    assert np.all(_chaotic_part(ens[:, :6], offsets[:6])[1] == 5)
+    assert np.all(chaotic_part(ens[:, :6], offsets[:6])[1] == 5)
 
 
 def test_a_prior_under_a_wrong_name_is_refused_not_ignored():
@@ -768,6 +750,6 @@ def test_counts_of_the_profile_stage_are_checked_at_construction():
         FitOptions(roughness_sets=0)
     # Levenberg–Marquardt steps: 8 per recording by default (a joint fit's iterate moves
     # longer), or what was asked for
-    assert [_lm_steps(FitOptions(), n) for n in (1, 2, 3)] == [8, 16, 24]
-    assert _lm_steps(FitOptions(max_iterations=5), 2) == 5
-    assert _lm_steps(FitOptions.quick(), 2) == 3
+    assert [lm_steps(FitOptions(), n) for n in (1, 2, 3)] == [8, 16, 24]
+    assert lm_steps(FitOptions(max_iterations=5), 2) == 5
+    assert lm_steps(FitOptions.quick(), 2) == 3

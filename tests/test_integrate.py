@@ -218,7 +218,7 @@ def test_dense_output_is_diffraxs_tsit5_interpolation():
     # the monomial (Horner) form of the interpolant against diffrax's factored polynomials
     from diffrax._solver.tsit5 import _Tsit5Interpolation
 
-    from rattlefit.simulation.lockstep import _dense_output
+    from rattlefit.simulation.lockstep import dense_output
 
     rng = np.random.default_rng(5)
     y0 = rng.normal(size=(4, 2))
@@ -226,7 +226,7 @@ def test_dense_output_is_diffraxs_tsit5_interpolation():
     h = np.array([1e-4, 3e-3, 0.5, 2.0])
     s = rng.uniform(0, 1, size=(4, 9))
     got = np.asarray(
-        _dense_output(
+        dense_output(
             jnp.asarray(y0), [jnp.asarray(h[:, None] * k[:, i]) for i in range(7)], jnp.asarray(s)
         )
     )

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import rattlefit as rf
+from rattlefit.physics.model import share_stiffness_tables
 from test_reference import sharp_stiffness  # eq. (4) written out, sharp windows
 
 
@@ -37,7 +38,7 @@ def test_a_shared_stack_of_tables_gives_each_model_its_own_stiffness():
     ]
     assert not np.allclose(models[0].stiffness_table, models[1].stiffness_table)
     stacked = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *models)
-    untabled, tables = rf.model.share_stiffness_tables(stacked)
+    untabled, tables = share_stiffness_tables(stacked)
     assert untabled.stiffness_table is None and tables.shape == (
         2,
         *models[0].stiffness_table.shape,

@@ -5,8 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from rattlefit.inference.fit import FitOptions, FitResult, ParameterEstimate
+from rattlefit import FitOptions, FitResult
 from rattlefit.inference.profile import profile_threshold
+from rattlefit.inference.result import ParameterEstimate
 from rattlefit.report import format_table
 
 

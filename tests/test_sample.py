@@ -15,19 +15,20 @@ import pytest
 from scipy import stats
 
 import rattlefit as rf
+from rattlefit import FitOptions, identify, sample, synthesize
 from rattlefit.errors import RattlefitError
-from rattlefit.inference.fit import FitOptions, NoiseModel, identify
+from rattlefit.inference.noise import NoiseModel
 from rattlefit.inference.parameters import ParameterSpec
 from rattlefit.inference.posterior import (
     LogPosterior,
+    Posterior,
     SampleOptions,
     _Context,
     _write_context,
     run_chain,
-    sample,
 )
+from rattlefit.inference.problem import build_problem
 from rattlefit.io.recording import OperatingPoint
-from rattlefit.simulation.synthetic import synthesize
 
 
 def _log_values(specs, z):
@@ -46,8 +47,6 @@ def _independent(chain, burn):
 
 def _posterior(chain, names, units, *, burn_in, **extra):
     """A Posterior around ``chain`` (steps, walkers, P) with placeholder diagnostics."""
-    from rattlefit.inference.posterior import Posterior
-
     steps, walkers, p = chain.shape
     fields = dict(
         log_prob=np.zeros((steps, walkers)),
@@ -224,11 +223,10 @@ def test_posterior_summaries_of_independent_normal_draws():
 def test_predictive_plot_draws_from_the_kept_chain(tmp_path, small_recording):
     # a chain that sits at the true parameters: its predictive band spectra must lie on the
     # measured ones within the run-to-run spread (rms 0.1 in log10 for this mild rattle)
-    from rattlefit.inference.fit import _build
     from rattlefit.report import plot_posterior
 
     options = FitOptions(n_realisations=3)
-    problem, _ = _build([small_recording], options, np.random.default_rng(0))
+    problem, _ = build_problem([small_recording], options, np.random.default_rng(0))
     truth = {"a": 0.085e-3, "drag_torque": 0.025, "viscosity_scale": 1.0}
     z = np.array([s.z_of(truth.get(s.name, s.center)) for s in problem.specs])
     chain_z = np.tile(z, (20, 12, 1)) + 1e-3 * np.random.default_rng(1).normal(size=(20, 12, 6))
