@@ -14,16 +14,14 @@ from click.testing import CliRunner
 import rattlefit as rf
 from rattlefit import FitOptions, synthesize
 from rattlefit.cli import main
-from rattlefit.diagnosis.diagnose import (
+from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
+from rattlefit.diagnosis.result import baseline_warnings, gap_closed
+from rattlefit.diagnosis.screening import (
     FREE_FACTORS,
     SCREEN_DECADES,
-    DiagnoseOptions,
-    _free_alternatives,
-    _gap_closed,
-    _screen_points,
-    baseline_warnings,
-    diagnose,
     effect_specs,
+    free_alternatives,
+    screen_points,
 )
 from rattlefit.errors import RattlefitError
 from rattlefit.inference.problem import build_problem
@@ -34,8 +32,20 @@ from rattlefit.physics import effects as fx
 #: gap error at the mesh order, a gap error per revolution), to keep CI short.
 TRIED = ("runout", "tooth_errors", "flank_friction")
 
+DRY_RECORDING_SEED = 11  # the dry recordings of pair II, with and without an effect
+MILD_RECORDING_SEED = 11  # the control's mild boundary recording (as in test_fit)
+BUILD_SEED = 0  # release states and dither draws of the problems built without a fit
 
-def _dry_pair2(effects, seed=11):
+#: a supported effect's p-value is below this, shared among the effects tried (Bonferroni)
+FAMILY_P = 0.01
+#: the friction coefficient's accepted range about its truth 0.2: it trades against the film
+#: and the drag (all dissipate), so a quick diagnosis sizes it to about an order of magnitude;
+#: the absent end of its range is 1e-6
+FRICTION_RANGE = (3e-3, 0.5)
+MIN_GAP_CLOSED = 0.25  # the share of the excess misfit the withheld effect must close
+
+
+def _dry_pair2(effects, seed=DRY_RECORDING_SEED):
     # pair II at 65.6 mm, dry, 20 % at 16 Hz: the paper's dry case, where it blames the
     # missing sliding friction for the model's overestimate of rattle
     g = rf.table2_pair("II", center_distance_mm=65.6)
@@ -49,18 +59,10 @@ def test_diagnose_names_withheld_flank_friction_and_sizes_it(tmp_path):
     # flanks, the model has none. Without it the fit gives the dry flanks an oil film (the
     # only dissipation the model has); diagnose must name flank friction, size it, and
     # show the misfit shrink.
-    # μ_f = 0.2 with the full fit (session 9, one device: 197 → 7.6, μ_f 0.195). At μ_f = 0.1
-    # detection depended on the realisation (p = 0.0017, 0.012 and 0.25 across device counts
-    # and fit presets), and at 0.2 a quick fit (χ² 1440) blamed run-out: use the full fit.
-    # Session 14, with the AVX2 cap (another realisation): the fit put T_b at 0.0035 N m
-    # (truth 0.025) and the starts with less drag never reached the friction (verdict none,
-    # friction 1255 → 1037, μ_f 0.046); with dry starts at more drag (FREE_FACTORS) friction
-    # is the verdict, 1255 → 840 (p 0.0011, μ_f 0.11), run-out close behind (→ 850, p 0.0063
-    # against the 0.0033 needed): a narrow margin, recorded here so that a change is read
-    # against it (README "diagnose": the friction's basin is narrow). Session 36 (an Intel
-    # Xeon with AVX-512, one device): failed with the effect sizes screened at half decades
-    # (best start μ_f 0.316, χ² 251.9 → 493.8 out of sample, no verdict); passes with quarter
-    # decades (μ_f 0.178, χ² 251.9 → 45.8, p 1.7e-11).
+    # μ_f = 0.2 with the full fit: at μ_f = 0.1 detection depends on the realisation, and at
+    # 0.2 a quick fit, far from the recording, blames run-out. The friction's basin is narrow
+    # (README "diagnose"): the dry starts at more drag (FREE_FACTORS) and the screening of
+    # the effect sizes at quarter decades (SCREEN_DECADES) are what reach it.
     rec, truth = _dry_pair2([fx.FlankFriction(coefficient=0.2)])
     path = tmp_path / "dry_friction.h5"
     write_recording(rec, path, extra_attrs=truth)
@@ -73,24 +75,16 @@ def test_diagnose_names_withheld_flank_friction_and_sizes_it(tmp_path):
     assert doc["verdict"] == "flank_friction"
     outcomes = {e["name"]: e for e in doc["effects"]}
     friction = outcomes["flank_friction"]
-    assert friction["supported"] and friction["p_value"] < 0.01 / len(TRIED)
-    # truth 0.2; the friction trades against the film and the drag (all dissipate), so a
-    # quick diagnosis sizes it only to within about an order of magnitude (measured: 0.011
-    # and 0.100 with two screening designs); the absent end of its range is 1e-6
+    assert friction["supported"] and friction["p_value"] < FAMILY_P / len(TRIED)
     coefficient = friction["parameters"]["coefficient"]["value"]
-    assert 3e-3 < coefficient < 0.5, coefficient
-    assert friction["gap_closed"] > 0.25
+    assert FRICTION_RANGE[0] < coefficient < FRICTION_RANGE[1], coefficient
+    assert friction["gap_closed"] > MIN_GAP_CLOSED
     assert friction["chi2_with"] < friction["chi2_without"] - friction["noise_threshold"]
     # none of the others leaves as little misfit. Against a misfit this large a wrong but
-    # flexible effect can pass the F-test too: on an AMD EPYC without AVX-512 (session 27,
-    # another realisation) run-out took χ² 800 → 500 (p 0.0023, supported) while friction
-    # took 782 → 144 (μ_f 0.199); in session 14 run-out came within 2 % of friction's drop,
-    # unsupported (p 0.0063); in session 33 (one device) run-out took 2217 → 1148 (p 0.00019)
-    # and tooth errors 1932 → 1340 (p 0.0018), both supported, friction 1735 → 954 (p 6.8e-5,
-    # μ_f 0.263). Each effect's χ² without it is its own realisation of the same model
-    # (1735–2217 there), so the verdict is the supported effect that leaves the least misfit
-    # (until session 33 the largest drop, which then named run-out): that is what must be
-    # right, not whether a flexible wrong effect also passes the F-test.
+    # flexible effect (run-out, tooth errors) can pass the F-test too; each effect's χ²
+    # without it is its own realisation of the same model, so the verdict is the supported
+    # effect that leaves the least misfit: that is what must be right, not whether a flexible
+    # wrong effect also passes the F-test.
     for name in ("runout", "tooth_errors"):
         assert outcomes[name]["chi2_with"] > friction["chi2_with"], outcomes[name]
     assert doc["effects"][0]["name"] == "flank_friction"  # best first
@@ -111,12 +105,12 @@ def test_diagnose_supports_nothing_when_nothing_is_withheld():
     g = rf.table2_pair("II", center_distance_mm=65.0)
     op = OperatingPoint("boundary", 20.0, 52.36, 5.236, 8.0)
     p = rf.RattleParams(0.085e-3, 0.025, 0.4942, g.backlash)
-    rec, _ = synthesize(g, op, p, seed=11)
+    rec, _ = synthesize(g, op, p, seed=MILD_RECORDING_SEED)
     diag = diagnose([rec], DiagnoseOptions(effects=TRIED, fit=FitOptions.quick()))
     assert diag.verdict is None, [(o.name, o.chi2_without, o.chi2_with) for o in diag.outcomes]
     assert len(diag.outcomes) == len(TRIED)
     for o in diag.outcomes:
-        assert o.p_value > 0.01 / len(TRIED) or o.delta_chi2 < o.noise_threshold
+        assert o.p_value > FAMILY_P / len(TRIED) or o.delta_chi2 < o.noise_threshold
         # every effect's fitted fields are reported in SI within their ranges
         for field, (unit, lo, hi) in type(fx.absent(o.name)).ranges.items():
             assert lo <= o.values[field] <= hi and o.units[field] == unit
@@ -127,12 +121,12 @@ def test_diagnose_supports_nothing_when_nothing_is_withheld():
 
 def test_screen_points_try_each_field_alone_and_together_with_less_film_and_drag():
     rec, _ = _dry_pair2([])
-    problem, _ = build_problem([rec], FitOptions.quick(), np.random.default_rng(0))
+    problem, _ = build_problem([rec], FitOptions.quick(), np.random.default_rng(BUILD_SEED))
     specs = effect_specs("runout")
     p0 = len(problem.specs)
     z_off = np.concatenate([np.zeros(p0), np.full(len(specs), -8.0)])
     z_off[0] = problem.specs[0].z_of(2e-4)  # a = 0.2 mm
-    pts = _screen_points(z_off, specs, problem)
+    pts = screen_points(z_off, specs, problem)
     per_film = 3 * len(SCREEN_DECADES)  # each field alone, then both together
     assert pts.shape == (len(FREE_FACTORS) * per_film, p0 + len(specs))
     values = np.array([[float(s.value(z[p0 + j])) for j, s in enumerate(specs)] for z in pts])
@@ -151,9 +145,9 @@ def test_screen_points_try_each_field_alone_and_together_with_less_film_and_drag
 
 def test_baseline_refit_starts_from_the_identification_and_the_free_alternatives():
     rec, _ = _dry_pair2([])
-    problem, _ = build_problem([rec], FitOptions.quick(), np.random.default_rng(0))
+    problem, _ = build_problem([rec], FitOptions.quick(), np.random.default_rng(BUILD_SEED))
     z = np.linspace(-0.5, 0.5, len(problem.specs))
-    alts = _free_alternatives(z, problem)
+    alts = free_alternatives(z, problem)
     assert alts.shape == (len(FREE_FACTORS), len(z))
     np.testing.assert_allclose(alts[0], z)  # FREE_FACTORS[0] is the identification itself
     film, drag = problem.specs[0], problem.specs[1]
@@ -174,10 +168,10 @@ def test_baseline_warnings_flag_an_unconverged_or_far_identification():
 
 
 def test_gap_closed_is_the_share_of_the_excess_misfit():
-    assert _gap_closed(130.0, 80.0, 30) == pytest.approx(0.5)
-    assert _gap_closed(130.0, 10.0, 30) == 1.0  # clipped
-    assert _gap_closed(130.0, 150.0, 30) == 0.0
-    assert _gap_closed(25.0, 20.0, 30) == 0.0  # no excess: nothing to close
+    assert gap_closed(130.0, 80.0, 30) == pytest.approx(0.5)
+    assert gap_closed(130.0, 10.0, 30) == 1.0  # clipped
+    assert gap_closed(130.0, 150.0, 30) == 0.0
+    assert gap_closed(25.0, 20.0, 30) == 0.0  # no excess: nothing to close
 
 
 def test_unknown_effects_are_refused_with_the_known_ones(tmp_path):
