@@ -30,6 +30,26 @@ from rattlefit.inference.posterior import (
 from rattlefit.inference.problem import build_problem
 from rattlefit.io.recording import OperatingPoint
 
+# Seeds: the chains' (emcee's stream), the draws' and the synthetic recording's.
+PRIOR_CHAIN_SEED = 3  # the chain without data
+LINEAR_SEED = 0  # the linear-Gaussian target's design and data
+LINEAR_CHAIN_SEED = 1  # its chain
+RESUMED_CHAIN_SEED = 5  # the chain run whole and in pieces
+NORMAL_DRAWS_SEED = 2  # iid normal draws standing in for a chain
+JITTER_SEED = 1  # the spread of a chain about the truth
+MILD_RECORDING_SEED = 11  # the mild boundary recording of pair II (as in test_fit)
+FIT_SEED = 0  # the identification the slow posterior starts from
+CHAIN_SEED = 0  # and its chain
+BUILD_SEED = 0  # release states and dither draws of the problem built without a fit
+
+# Margins.
+KS_P = 1e-3  # a KS test of the draws against the prior fails only this rarely by chance
+MEAN_TOLERANCE = 0.1  # of a posterior sd: the chain's mean after 2500 steps of 32 walkers
+CORRELATION_TOLERANCE = 0.08  # of the posterior correlations, from the same chain
+INTERVAL_TOLERANCE = (0.01, 0.02)  # the median's and the 95 % ends' about μ ± 1.96 s (s 0.2)
+ESS_FACTOR = 0.3  # arviz's ESS of iid draws is their count, within ±30 %
+PREDICTIVE_RMS = 0.15  # log10: the run-to-run spread of this mild rattle's bands is about 0.1
+
 
 def _log_values(specs, z):
     """log v of each parameter for z (..., P), as ParameterSpec.value defines it."""
@@ -80,7 +100,13 @@ def test_without_data_the_chain_draws_the_priors():
     data = np.zeros((1, 3))
     target = LogPosterior(specs, data, _identity_noise(3), lambda zs: np.zeros((len(zs), 1, 3)))
     sampler = run_chain(
-        target, np.zeros(2), np.eye(2), n_walkers=32, n_steps=2500, seed=3, init_scale=1.0
+        target,
+        np.zeros(2),
+        np.eye(2),
+        n_walkers=32,
+        n_steps=2500,
+        seed=PRIOR_CHAIN_SEED,
+        init_scale=1.0,
     )
     draws = _log_values(specs, _independent(sampler.get_chain(), 500))
     assert len(draws) > 1000
@@ -88,15 +114,15 @@ def test_without_data_the_chain_draws_the_priors():
     uniform = stats.kstest(draws[:, 0], stats.uniform(lo, hi - lo).cdf)
     bound = (math.log(0.2) / 0.5, math.log(5.0) / 0.5)
     truncated = stats.kstest(draws[:, 1], stats.truncnorm(*bound, loc=0.0, scale=0.5).cdf)
-    assert uniform.pvalue > 1e-3, uniform
-    assert truncated.pvalue > 1e-3, truncated
+    assert uniform.pvalue > KS_P, uniform
+    assert truncated.pvalue > KS_P, truncated
 
 
 def test_linear_gaussian_posterior_matches_the_closed_form():
     # features linear in log v, correlated bands (whitening), an inflated recording
     # (row_scale) and log-normal priors wide enough that their truncation does not matter:
     # the posterior of log v is Gaussian with precision AᵀC⁻¹A + P⁻¹
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(LINEAR_SEED)
     n_band, specs = (
         6,
         tuple(
@@ -119,12 +145,14 @@ def test_linear_gaussian_posterior_matches_the_closed_form():
     cov = np.linalg.inv(precision)
     mean = cov @ (a.T @ c_inv @ data[0])
     z0 = np.array([s.z_of(math.exp(m)) for s, m in zip(specs, mean, strict=True)])
-    sampler = run_chain(target, z0, 0.1 * np.eye(3), n_walkers=32, n_steps=3000, seed=1)
+    sampler = run_chain(
+        target, z0, 0.1 * np.eye(3), n_walkers=32, n_steps=3000, seed=LINEAR_CHAIN_SEED
+    )
     draws = _log_values(specs, sampler.get_chain(discard=500, flat=True))
     sd = np.sqrt(np.diag(cov))
-    assert np.all(np.abs(draws.mean(axis=0) - mean) < 0.1 * sd), (draws.mean(axis=0), mean)
+    assert np.all(np.abs(draws.mean(axis=0) - mean) < MEAN_TOLERANCE * sd), (draws.mean(0), mean)
     ratio = np.cov(draws.T) / np.outer(sd, sd)
-    assert np.allclose(ratio, cov / np.outer(sd, sd), atol=0.08), (ratio, cov)
+    assert np.allclose(ratio, cov / np.outer(sd, sd), atol=CORRELATION_TOLERANCE), (ratio, cov)
 
 
 def test_a_resumed_chain_equals_an_uninterrupted_one(tmp_path):
@@ -141,7 +169,13 @@ def test_a_resumed_chain_equals_an_uninterrupted_one(tmp_path):
         for n in steps:  # each call continues the chain in the file to n steps
             backend = emcee.backends.HDFBackend(str(path), name="mcmc")
             run_chain(
-                target, np.zeros(2), np.eye(2), n_walkers=8, n_steps=n, seed=5, backend=backend
+                target,
+                np.zeros(2),
+                np.eye(2),
+                n_walkers=8,
+                n_steps=n,
+                seed=RESUMED_CHAIN_SEED,
+                backend=backend,
             )
         return backend.get_chain()
 
@@ -158,7 +192,7 @@ def small_recording():
     g = rf.table2_pair("II", center_distance_mm=65.0)
     op = OperatingPoint("boundary", 20.0, 52.36, 5.236, 8.0)
     p = rf.RattleParams(0.085e-3, 0.025, 0.4942, g.backlash)
-    rec, _ = synthesize(g, op, p, seed=11, duration=1.0)
+    rec, _ = synthesize(g, op, p, seed=MILD_RECORDING_SEED, duration=1.0)
     return rec
 
 
@@ -194,9 +228,10 @@ def test_posterior_of_a_synthetic_recording_holds_the_truth(tmp_path):
     g = rf.table2_pair("II", center_distance_mm=65.0)
     op = OperatingPoint("boundary", 20.0, 52.36, 5.236, 8.0)
     p = rf.RattleParams(0.085e-3, 0.025, 0.4942, g.backlash)
-    rec, _ = synthesize(g, op, p, seed=11)
-    fit = identify([rec], FitOptions(seed=0))
-    post = sample([rec], fit, SampleOptions(n_steps=150, seed=0), backend=tmp_path / "c.h5")
+    rec, _ = synthesize(g, op, p, seed=MILD_RECORDING_SEED)
+    fit = identify([rec], FitOptions(seed=FIT_SEED))
+    options = SampleOptions(n_steps=150, seed=CHAIN_SEED)
+    post = sample([rec], fit, options, backend=tmp_path / "c.h5")
     ci = post.intervals()
     for name, truth in (("a", 0.085e-3), ("drag_torque", 0.025), ("viscosity", 0.4942)):
         _, lo, hi = ci[name]
@@ -208,28 +243,30 @@ def test_posterior_summaries_of_independent_normal_draws():
     # number of draws (every walker is one chain)
     import arviz as az
 
-    rng = np.random.default_rng(2)
+    rng = np.random.default_rng(NORMAL_DRAWS_SEED)
     chain = 1.5 + 0.2 * rng.standard_normal((400, 16, 1))
     post = _posterior(chain, ["x"], ["1"], burn_in=100, ess=np.full(1, 16 * 300.0))
     med, lo, hi = post.intervals()["x"]
-    assert abs(med - 1.5) < 0.01 and abs(lo - (1.5 - 1.96 * 0.2)) < 0.02, (lo, med, hi)
-    assert abs(hi - (1.5 + 1.96 * 0.2)) < 0.02
+    near_median, near_end = INTERVAL_TOLERANCE
+    assert abs(med - 1.5) < near_median and abs(lo - (1.5 - 1.96 * 0.2)) < near_end, (lo, med)
+    assert abs(hi - (1.5 + 1.96 * 0.2)) < near_end
     ess = float(az.ess(post.to_arviz())["x"])
-    assert 0.7 * 4800 < ess < 1.3 * 4800, ess
+    assert (1 - ESS_FACTOR) * 4800 < ess < (1 + ESS_FACTOR) * 4800, ess
     doc = post.to_json()
     assert doc["parameters"]["x"]["unit"] == "1" and doc["sampler"]["burn_in"] == 100
 
 
 def test_predictive_plot_draws_from_the_kept_chain(tmp_path, small_recording):
     # a chain that sits at the true parameters: its predictive band spectra must lie on the
-    # measured ones within the run-to-run spread (rms 0.1 in log10 for this mild rattle)
+    # measured ones within the run-to-run spread (PREDICTIVE_RMS)
     from rattlefit.report import plot_posterior
 
     options = FitOptions(n_realisations=3)
-    problem, _ = build_problem([small_recording], options, np.random.default_rng(0))
+    problem, _ = build_problem([small_recording], options, np.random.default_rng(BUILD_SEED))
     truth = {"a": 0.085e-3, "drag_torque": 0.025, "viscosity_scale": 1.0}
     z = np.array([s.z_of(truth.get(s.name, s.center)) for s in problem.specs])
-    chain_z = np.tile(z, (20, 12, 1)) + 1e-3 * np.random.default_rng(1).normal(size=(20, 12, 6))
+    jitter = np.random.default_rng(JITTER_SEED).normal(size=(20, 12, 6))
+    chain_z = np.tile(z, (20, 12, 1)) + 1e-3 * jitter
     post = _posterior(
         chain_z,
         [s.name for s in problem.specs],
@@ -240,7 +277,7 @@ def test_predictive_plot_draws_from_the_kept_chain(tmp_path, small_recording):
     )
     draws, data, centres = post.predictive_features([small_recording], n_draws=3)
     assert draws.shape == (3, 1, len(centres)) and data.shape == (1, len(centres))
-    assert np.sqrt(np.mean((draws - data) ** 2)) < 0.15
+    assert np.sqrt(np.mean((draws - data) ** 2)) < PREDICTIVE_RMS
     paths = plot_posterior(post, tmp_path, [small_recording])
     assert any(p.name.startswith("posterior_predictive_0_") for p in paths)
     assert all(p.stat().st_size > 0 for p in paths)
