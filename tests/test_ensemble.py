@@ -8,6 +8,25 @@ from rattlefit.features.ensemble import band_sigma, ensemble_mean, regime_weight
 N, B = 6, 30
 THRESHOLD = 9.0
 
+# Seeds: each test draws its own ensembles.
+GAUSSIAN_SEED = 0
+OTHER_REGIME_SEED = 1
+NO_MAJORITY_SEED = 2
+SPREAD_SEED = 3
+TRACED_SEED = 4
+RARE_REGIME_SEED = 5
+LONE_SEED = 6
+RECORDING_REGIME_TRACED_SEED = 7
+REGIME_SHARE_SEED = 8
+
+# Margins.
+KEPT_SHARE = 0.995  # of Gaussian realisations kept: a second regime is not invented
+DECIDED_SHARE = 0.99  # of trials in which a realisation 4–8 sd off is told apart
+PULL_TOLERANCE = 0.01  # relative, on the plain mean's pull by one excursion in six
+UNPULLED = 0.005  # the common regime's mean moves less than this (log10) on average
+SPREAD_TOLERANCE = 0.03  # relative, on a band variance's mean over 400 trials
+INFLATED = 3.0  # the plain spread with three excursions in 24 exceeds this × the true one
+
 
 def _gaussian(rng, trials, sd=0.1):
     level = np.linspace(-5.0, -11.0, B)
@@ -17,32 +36,32 @@ def _gaussian(rng, trials, sd=0.1):
 def test_gaussian_realisations_are_all_kept():
     # a Gaussian ensemble has no second regime: almost nothing may be set aside, or the
     # robust mean would lose efficiency for nothing
-    ens = _gaussian(np.random.default_rng(0), 4000)
+    ens = _gaussian(np.random.default_rng(GAUSSIAN_SEED), 4000)
     w = np.asarray(regime_weights(ens, THRESHOLD))
-    assert w.mean() > 0.995
+    assert w.mean() > KEPT_SHARE
 
 
 def test_a_realisation_in_another_regime_is_set_aside():
     # one realisation of six moved by 4 sd in every band (as a locked orbit moves a spectrum):
     # it must leave the mean, which is then the mean of the other five
-    rng = np.random.default_rng(1)
+    rng = np.random.default_rng(OTHER_REGIME_SEED)
     ens = _gaussian(rng, 2000)
     ens[:, 2] += 0.4
     w = np.asarray(regime_weights(ens, THRESHOLD))
-    assert np.mean(w[:, 2] == 0) > 0.99
-    assert np.mean(w[:, [0, 1, 3, 4, 5]]) > 0.99
+    assert np.mean(w[:, 2] == 0) > DECIDED_SHARE
+    assert np.mean(w[:, [0, 1, 3, 4, 5]]) > DECIDED_SHARE
     others = ens[:, [0, 1, 3, 4, 5]].mean(axis=1)
     both = np.all(w[:, [0, 1, 3, 4, 5]] == 1, axis=1) & (w[:, 2] == 0)
     got = np.asarray(ensemble_mean(ens, THRESHOLD))
     assert got[both] == pytest.approx(others[both], abs=1e-12)
     plain = ens.mean(axis=1)
     # the plain mean is pulled by a sixth of the excursion; the common regime's is not
-    assert np.mean(plain - others) == pytest.approx(0.4 / 6, rel=0.01)
-    assert abs(np.mean(got - others)) < 0.005
+    assert np.mean(plain - others) == pytest.approx(0.4 / 6, rel=PULL_TOLERANCE)
+    assert abs(np.mean(got - others)) < UNPULLED
 
 
 def test_never_more_than_half_and_never_with_few_realisations():
-    rng = np.random.default_rng(2)
+    rng = np.random.default_rng(NO_MAJORITY_SEED)
     ens = _gaussian(rng, 500)
     ens[:, :3] += 1.0  # half in each of two regimes: no majority, so nothing is set aside
     assert np.all(np.asarray(regime_weights(ens, THRESHOLD)).sum(axis=1) >= N / 2)
@@ -56,7 +75,7 @@ def test_never_more_than_half_and_never_with_few_realisations():
 def test_band_sigma_is_the_spread_of_the_common_regime():
     # 24 realisations, 3 of them in another regime: with the threshold the spread is the
     # Gaussian one (unbiased over many trials), without it the excursions inflate it
-    rng = np.random.default_rng(3)
+    rng = np.random.default_rng(SPREAD_SEED)
     trials, n, sd = 400, 24, 0.1
     level = np.linspace(-5.0, -11.0, B)
     ens = level + sd * rng.standard_normal((trials, n, B))
@@ -65,8 +84,8 @@ def test_band_sigma_is_the_spread_of_the_common_regime():
     robust = np.asarray(band_sigma(ens, threshold=THRESHOLD, **kw))
     plain = np.asarray(band_sigma(ens, **kw))
     expected = sd * np.sqrt(1 + 1 / 6)
-    assert np.mean(robust**2) == pytest.approx(expected**2, rel=0.03)
-    assert np.mean(plain**2) > 3 * expected**2
+    assert np.mean(robust**2) == pytest.approx(expected**2, rel=SPREAD_TOLERANCE)
+    assert np.mean(plain**2) > INFLATED * expected**2
 
 
 def test_the_traced_path_is_the_host_path():
@@ -75,7 +94,7 @@ def test_the_traced_path_is_the_host_path():
     # must set the same realisations aside and give the same mean
     import jax
 
-    rng = np.random.default_rng(4)
+    rng = np.random.default_rng(TRACED_SEED)
     ens = _gaussian(rng, 50)
     ens[:, 2] += 0.4
     ens[::3, 4] -= 0.5  # a second excursion in some trials
@@ -102,22 +121,22 @@ def _two_regimes(rng, trials, rare: int, shift=0.8):
 def test_a_recording_of_the_rarer_regime_is_matched_by_that_regime():
     # coexisting attractors: two of six releases settle into a regime the recording is in;
     # its mean must be that regime's (the mean of those two), not the common one's
-    rng = np.random.default_rng(5)
+    rng = np.random.default_rng(RARE_REGIME_SEED)
     ens, in_rare, in_common = _two_regimes(rng, 1000, rare=2)
     w = np.asarray(regime_weights(ens, THRESHOLD, target=in_rare))
-    assert np.mean(np.all(w == [1, 1, 0, 0, 0, 0], axis=1)) > 0.99
+    assert np.mean(np.all(w == [1, 1, 0, 0, 0, 0], axis=1)) > DECIDED_SHARE
     got = np.asarray(ensemble_mean(ens, THRESHOLD, target=in_rare))
     exact = np.all(w == [1, 1, 0, 0, 0, 0], axis=1)
     np.testing.assert_allclose(got[exact], ens[exact, :2].mean(axis=1), rtol=1e-14)
     # a recording of the common regime keeps the common regime, exactly as without a target
     w_common = np.asarray(regime_weights(ens, THRESHOLD, target=in_common))
     np.testing.assert_array_equal(w_common, regime_weights(ens, THRESHOLD))
-    assert np.mean(np.all(w_common == [0, 0, 1, 1, 1, 1], axis=1)) > 0.99
+    assert np.mean(np.all(w_common == [0, 0, 1, 1, 1, 1], axis=1)) > DECIDED_SHARE
 
 
 def test_a_lone_realisation_is_not_a_regime():
     # one release of six in the recording's regime gives no spread: the common regime stays
-    rng = np.random.default_rng(6)
+    rng = np.random.default_rng(LONE_SEED)
     ens, in_rare, _ = _two_regimes(rng, 200, rare=1)
     np.testing.assert_array_equal(
         regime_weights(ens, THRESHOLD, target=in_rare), regime_weights(ens, THRESHOLD)
@@ -130,7 +149,7 @@ def test_a_regime_too_few_releases_reach_is_not_the_recordings():
     from rattlefit.features.ensemble import MIN_REGIME_SHARE
 
     assert MIN_REGIME_SHARE * 24 == pytest.approx(4)
-    rng = np.random.default_rng(8)
+    rng = np.random.default_rng(REGIME_SHARE_SEED)
     level = np.linspace(-5.0, -11.0, B)
     target = level + 0.8 + 0.1 * rng.standard_normal((300, B))
     for rare, expect_rare in ((3, False), (4, True)):
@@ -138,13 +157,13 @@ def test_a_regime_too_few_releases_reach_is_not_the_recordings():
         ens[:, :rare] += 0.8
         w = np.asarray(regime_weights(ens, THRESHOLD, target=target))
         chosen = np.all(w[:, :rare] == 1, axis=1) & np.all(w[:, rare:] == 0, axis=1)
-        assert np.mean(chosen) > 0.99 if expect_rare else np.mean(chosen) == 0
+        assert np.mean(chosen) > DECIDED_SHARE if expect_rare else np.mean(chosen) == 0
 
 
 def test_the_recording_regime_traces_as_it_computes_on_the_host():
     import jax
 
-    rng = np.random.default_rng(7)
+    rng = np.random.default_rng(RECORDING_REGIME_TRACED_SEED)
     ens, in_rare, in_common = _two_regimes(rng, 60, rare=2)
     target = np.where(np.arange(60)[:, None] % 2 == 0, in_rare, in_common)
     w_host = regime_weights(ens, THRESHOLD, target=target)
