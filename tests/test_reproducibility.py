@@ -11,11 +11,14 @@ import pytest
 from rattlefit import reproducibility as rp
 
 X86 = platform.machine().lower() in ("x86_64", "amd64")
+MILD_RECORDING_SEED = 11  # the mild boundary recording of pair II (as in test_fit)
 
 # A 1 s synthetic recording of the mild rattle: long enough for the chaos to grow a last-bit
-# difference into another recording (measured on an AVX-512 EPYC: the uncapped default and the
-# AVX2 cap give different counts; at 0.3 s they still agree).
-SCRIPT = """
+# difference into another recording (on an AVX-512 CPU the uncapped default and the AVX2 cap
+# give different counts; over 0.3 s they still agree), so equal hashes mean equal arithmetic.
+SCRIPT = (
+    f"MILD_RECORDING_SEED = {MILD_RECORDING_SEED}\n"
+    + """
 import hashlib, json, os
 import numpy as np
 import rattlefit as rf
@@ -24,11 +27,12 @@ from rattlefit.simulation.synthetic import synthesize
 g = rf.table2_pair("II", center_distance_mm=65.0)
 op = OperatingPoint("boundary", 20.0, 52.36, 5.236, 8.0)
 p = rf.RattleParams(0.085e-3, 0.025, 0.4942, g.backlash)
-rec, _ = synthesize(g, op, p, seed=11, duration=1.0, burn_in=0.5)
+rec, _ = synthesize(g, op, p, seed=MILD_RECORDING_SEED, duration=1.0, burn_in=0.5)
 counts = np.asarray(rec.secondary)
 print(json.dumps({"hash": hashlib.sha1(counts.tobytes()).hexdigest(),
                   "platform": rf.platform_info()}))
 """
+)
 
 
 def _run(env_changes):
@@ -78,8 +82,9 @@ def test_too_late_a_cap_warns_and_changes_nothing(monkeypatch):
 
 
 def test_platform_info_names_the_cpu_model():
-    # a seeded result depends on the CPU model even under the cap (session 27: another
-    # recording on an EPYC without AVX-512), so the outputs say which CPU computed them
+    # a seeded result can depend on the CPU model even under the cap (another CPU of the same
+    # instruction set can compute another realisation), so the outputs say which CPU computed
+    # them
     text = (
         "processor\t: 0\nvendor_id\t: AuthenticAMD\ncpu family\t: 25\nmodel\t\t: 1\n"
         "model name\t: AMD EPYC\nflags\t\t: fpu avx2\n\n"
