@@ -24,6 +24,9 @@ LUBRICATION = {  # a (m) and oil temperature (°C): the paper's Section 6 values
     "oil_jet": (1.0e-3, 25.0),
 }
 DRAG = {"I": 0.03, "II": 0.025}
+GROWTH = 1.5  # IGR from 65.0 to 66.0 mm grows by more than this factor
+SCATTER = 0.9  # a 3-run mean scatters by about 10 %: "monotone" allows a step down this far
+OIL_JET_DROP = 0.9  # the oil jet's IGR is "more appreciably" below the dry one than this
 
 
 @pytest.fixture(scope="module", params=["I", "II"])
@@ -49,15 +52,15 @@ def test_igr_grows_with_backlash(igr_table):
     pair, table = igr_table
     for lub in LUBRICATION:
         values = [table[cd, lub] for cd in CENTRE_DISTANCES]
-        assert values[-1] > 1.5 * values[0], (pair, lub, values)
+        assert values[-1] > GROWTH * values[0], (pair, lub, values)
         if lub == "oil_jet":
             # the strong oil-jet film locks the motion into periodic orbits at some backlashes
             # and not at others, so the model's trend has windows (measured, pair I with
             # h_min = 2 µm: 0.022, 0.11, 0.039, 0.060 rad·Hz over 65.0-66.0 mm, every release
             # agreeing): only the overall growth is asked of it
             continue
-        # monotone up to the chaotic scatter of a 3-run mean (~10 %)
-        assert all(b > 0.9 * a for a, b in itertools.pairwise(values)), (
+        # monotone up to the chaotic scatter of a 3-run mean
+        assert all(b > SCATTER * a for a, b in itertools.pairwise(values)), (
             pair,
             lub,
             values,
@@ -68,4 +71,4 @@ def test_igr_drops_with_lubrication(igr_table):
     pair, table = igr_table
     mean = {lub: np.mean([table[cd, lub] for cd in CENTRE_DISTANCES]) for lub in LUBRICATION}
     assert mean["dry"] > mean["boundary"] > mean["oil_jet"], (pair, mean)
-    assert mean["oil_jet"] < 0.9 * mean["dry"], (pair, mean)
+    assert mean["oil_jet"] < OIL_JET_DROP * mean["dry"], (pair, mean)

@@ -12,9 +12,16 @@ from rattlefit.features.spectra import (
     welch_psd,
 )
 
+RANDOM_WALK_SEED = 0  # the signal compared with scipy's Welch
+TRACED_SEED = 3  # the signal computed traced and concrete
+WHITE_SEED = 1  # white noise
+ENCODER_SEED = 2  # the irregular shaft motions that are quantised
+WHITE_TOLERANCE = 0.1  # relative: a band's Welch estimate of 200 000 samples scatters ~ a few %
+FLOOR_TOLERANCE = 0.15  # relative: the quantisation error is white only approximately
+
 
 def test_welch_matches_scipy():
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(RANDOM_WALK_SEED)
     x = np.cumsum(rng.normal(size=30000)) * 1e-5 + 1e-3 * np.sin(
         2 * np.pi * 16 * np.arange(30000) / 1e4
     )
@@ -29,7 +36,7 @@ def test_spectra_are_computed_alike_traced_and_concrete():
     # JAX: both must be scipy's Welch PSD (checked above on the numpy side) to rounding
     import jax
 
-    rng = np.random.default_rng(3)
+    rng = np.random.default_rng(TRACED_SEED)
     x = np.cumsum(rng.normal(size=(2, 30000)), axis=1) * 1e-5
     bands = BandSpec()
     concrete = spectral_features(x, bands, noise_floor=1e-14)
@@ -42,16 +49,16 @@ def test_spectra_are_computed_alike_traced_and_concrete():
 
 def test_white_noise_band_power_is_its_level():
     # white noise of variance σ² has one-sided PSD 2σ²/fs in every band
-    rng = np.random.default_rng(1)
+    rng = np.random.default_rng(WHITE_SEED)
     sigma = 3e-5
     x = rng.normal(scale=sigma, size=200_000)
     bp = np.asarray(band_power(x, BandSpec(n_bands=8, f_low=100)))
-    np.testing.assert_allclose(bp, 2 * sigma**2 / 1e4, rtol=0.1)
+    np.testing.assert_allclose(bp, 2 * sigma**2 / 1e4, rtol=WHITE_TOLERANCE)
 
 
 def test_quantisation_floor_of_real_encoders():
     # Quantising two irregular shaft motions the way the rig does gives the floor of eq. (8).
-    rng = np.random.default_rng(2)
+    rng = np.random.default_rng(ENCODER_SEED)
     t = np.arange(100_000) / 1e4
     quantum = 2 * np.pi / 40000
     th1 = 52.36 * t + rng.uniform(0, 7 * quantum, size=t.size)
@@ -61,7 +68,8 @@ def test_quantisation_floor_of_real_encoders():
     d = 2 * np.pi / 40000 * (c1 - c2 * 41 / 19)
     exact = th1 - th2 * 41 / 19
     bp = np.asarray(band_power(d - exact, BandSpec(n_bands=6, f_low=200)))
-    np.testing.assert_allclose(bp, quantisation_floor(40000, 41 / 19, 1e4), rtol=0.15)
+    floor = quantisation_floor(40000, 41 / 19, 1e4)
+    np.testing.assert_allclose(bp, floor, rtol=FLOOR_TOLERANCE)
 
 
 def test_amplitude_spectrum_of_sinusoid():
