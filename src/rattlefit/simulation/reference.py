@@ -1,14 +1,15 @@
 """Sharp-switching reference solver of the one-dof rattle model (numpy + scipy, no JAX).
 
-This module is the *ground truth* for the smoothed JAX simulator of :mod:`rattlefit.physics.model` and
-the baseline a gear-dynamics engineer would write. It integrates the **unsmoothed** equations
-with :func:`scipy.integrate.solve_ivp`, locating every contact onset and exit as a terminal
-event and restarting there, so that no step ever straddles a discontinuity of the force law.
+This module is the *ground truth* for the smoothed JAX simulator of
+:mod:`rattlefit.physics.model` and the baseline a gear-dynamics engineer would write. It
+integrates the **unsmoothed** equations with :func:`scipy.integrate.solve_ivp`, locating every
+contact onset and exit as a terminal event and restarting there, so that no step ever
+straddles a discontinuity of the force law.
 
-It is deliberately independent of :mod:`rattlefit.physics.model`: the laws are written again below from
-the formulas (no function of ``model.py`` is called). It reads only scalar attributes of
-:class:`~rattlefit.physics.geometry.GearGeometry` and the coefficient arrays of a
-:class:`~rattlefit.physics.drive.Drive`.
+It is deliberately independent of :mod:`rattlefit.physics.model`: the laws are written again
+below from the formulas (no function of that module is called). It reads only scalar
+attributes of :class:`~rattlefit.physics.geometry.GearGeometry` and the coefficient arrays of
+a :class:`~rattlefit.physics.drive.Drive`.
 
 The sharp equations
 -------------------
@@ -47,6 +48,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -56,6 +58,8 @@ from ..errors import ParameterError, SolverError
 __all__ = ["ReferenceSolution", "simulate_reference"]
 
 _GAP, _DRIVE, _COAST = 0, 1, 2
+#: The regime each of the gap regime's two events leads to.
+_GAP_TARGETS = (_COAST, _DRIVE)
 #: Relative hysteresis of the contact switches (fraction of half the backlash).
 _HYSTERESIS = 1e-9
 
@@ -99,6 +103,306 @@ def _scalar(name, value):
     if not math.isfinite(x):
         raise ParameterError(f"reference solver: {name} must be finite, got {x}")
     return x
+
+
+@dataclass(frozen=True)
+class _Motion:
+    """The primary shaft's angle θ1(t) = θ0 + Ω t + Σ A_k cos(ω_k t) + B_k sin(ω_k t), rad.
+
+    ``harmonics`` holds ``(ω_k, ω_k², A_k, B_k)`` for the non-zero terms; ``theta_p`` is the
+    base pitch angle Θp (rad) and ``pitch_rate_bound`` a bound on |θ̇1| / Θp (1/s), for the
+    conservative search of mesh-window switches.
+    """
+
+    theta0: float
+    omega: float
+    harmonics: tuple[tuple[float, float, float, float], ...]
+    theta_p: float
+    pitch_rate_bound: float
+
+
+@dataclass(frozen=True)
+class _Rattle:
+    """Scalar constants of the sharp equations (SI units, see the module notes).
+
+    ``c`` half the backlash (m), ``drag`` = T_b / r2 (N), ``k_scale`` = s_k k_p (N/m),
+    ``shape_den`` = 1.125 εα, ``s_pref`` = 3 μ Z R^{3/2}, ``delta`` the switch hysteresis (m).
+    """
+
+    motion: _Motion
+    m: float
+    r1: float
+    c: float
+    drag: float
+    eps: float
+    c_a: float
+    k_scale: float
+    shape_den: float
+    a: float
+    radius: float
+    h_min: float
+    s_pref: float
+    has_squeeze: bool
+    delta: float
+
+
+@dataclass(frozen=True)
+class _FlankEvent:
+    """Terminal ``solve_ivp`` event: a flank gap crosses ``level`` (m) in ``direction``.
+
+    ``flank`` is +1 for the coast-flank gap ``h₊ = c − q`` and −1 for the drive-flank gap
+    ``h₋ = c + q``; the event function is ``h − level``.
+    """
+
+    c: float
+    flank: int
+    level: float
+    direction: float
+    terminal: bool = True
+
+    def __call__(self, t, y):
+        h = (self.c - y[0]) if self.flank > 0 else (self.c + y[0])
+        return h - self.level
+
+
+def _checked_inputs(values: dict, rtol, atol) -> dict[str, float]:
+    """The scalar inputs as floats, validated; raises :class:`ParameterError`."""
+    x = {name: _scalar(name, value) for name, value in values.items()}
+    checks = {
+        "film_half_length": x["film_half_length"] >= 0,
+        "viscosity": x["viscosity"] >= 0,
+        "backlash": x["backlash"] > 0,
+        "min_film": x["min_film"] > 0,
+        "stiffness_scale": x["stiffness_scale"] > 0,
+        "duration": x["duration"] > 0,
+        "sample_rate": x["sample_rate"] > 0,
+        "burn_in": x["burn_in"] >= 0,
+        "rtol": rtol > 0,
+        "atol": atol > 0,
+    }
+    for name, ok in checks.items():
+        if not ok:
+            raise ParameterError(f"reference solver: {name} is out of range")
+    return x
+
+
+def _motion(drive, theta_p: float) -> _Motion:
+    """The drive's coefficients as floats; raises :class:`ParameterError` for a batched drive."""
+    omega = _scalar("drive.mean_speed", drive.mean_speed)
+    freq = _scalar("drive.frequency", drive.frequency)
+    theta0 = _scalar("drive.offset", drive.offset)
+    cos_c = np.asarray(drive.cos_coeffs, dtype=float)
+    sin_c = np.asarray(drive.sin_coeffs, dtype=float)
+    if cos_c.ndim != 1 or cos_c.shape != sin_c.shape:
+        raise ParameterError("reference solver: the drive must be a single (unbatched) drive")
+    harmonics = tuple(
+        (2.0 * math.pi * freq * k, 4.0 * math.pi**2 * freq**2 * k**2, float(ak), float(bk))
+        for k, (ak, bk) in enumerate(zip(cos_c, sin_c, strict=True), start=1)
+        if ak != 0.0 or bk != 0.0
+    )
+    speed_bound = abs(omega) + sum(w * (abs(ak) + abs(bk)) for w, _, ak, bk in harmonics)
+    return _Motion(theta0, omega, harmonics, theta_p, speed_bound / theta_p)
+
+
+def _angle_and_accel(motion: _Motion, t: float) -> tuple[float, float]:
+    """θ1(t) in rad and θ̈1(t) in rad/s²."""
+    th = motion.theta0 + motion.omega * t
+    acc = 0.0
+    for w, w2, ak, bk in motion.harmonics:
+        ph = w * t
+        x = ak * math.cos(ph) + bk * math.sin(ph)
+        th += x
+        acc -= w2 * x
+    return th, acc
+
+
+def _pitch_and_rate(motion: _Motion, t: float) -> tuple[float, float]:
+    """θ1(t) / Θp and θ̇1(t) / Θp (base pitches and base pitches per s)."""
+    th = motion.theta0 + motion.omega * t
+    rate = motion.omega
+    for w, _, ak, bk in motion.harmonics:
+        ph = w * t
+        cs, sn = math.cos(ph), math.sin(ph)
+        th += ak * cs + bk * sn
+        rate += w * (bk * cs - ak * sn)
+    return th / motion.theta_p, rate / motion.theta_p
+
+
+def _stiffness(eqs: _Rattle, theta1: float, n_lo: int, n_hi: int) -> float:
+    """K of eq. (4) with the pairs n_lo … n_hi in contact, N/m."""
+    p = theta1 / eqs.motion.theta_p
+    total = 0.0
+    for n in range(n_lo, n_hi + 1):
+        z = abs((p - n - 0.5 * eqs.eps) / eqs.shape_den)
+        total += math.exp(eqs.c_a * z * z * z)
+    return eqs.k_scale * total
+
+
+def _squeeze(eqs: _Rattle, h: float) -> float:
+    """S(max(h, h_min)) of eq. (5), N s/m."""
+    if h < eqs.h_min:
+        h = eqs.h_min
+    y = eqs.a / math.sqrt(eqs.radius * h)
+    y2 = y * y
+    if y < 1e-2:
+        gy = (8.0 / 3.0) * y2 * y * (1.0 - 1.8 * y2 + (18.0 / 7.0) * y2 * y2)
+    else:
+        gy = math.atan(y) + y * (y2 - 1.0) / (1.0 + y2) ** 2
+    return eqs.s_pref * gy / (h * math.sqrt(h))
+
+
+def _window(motion: _Motion, eps: float, t: float, t_limit: float) -> tuple[int, int, float]:
+    """Pairs ``n_lo … n_hi`` in contact just after t, and the next time (≤ t_limit, else inf)
+    they change, found by conservative advancement."""
+    p, rate = _pitch_and_rate(motion, t)
+    tol = max(1e-11, 64.0 * np.finfo(float).eps * abs(p))
+    nudge = 10.0 * tol
+    pe = p + math.copysign(nudge, rate) if rate != 0.0 else p
+    n_hi = math.floor(pe)
+    n_lo = math.ceil(pe - eps)
+    lo, hi = max(n_hi, n_lo - 1 + eps), min(n_hi + 1, n_lo + eps)
+    if motion.pitch_rate_bound == 0.0:
+        return n_lo, n_hi, math.inf
+    s = t
+    if rate != 0.0 and min(p - lo, hi - p) < nudge:  # just crossed into this window
+        s = t + 2.0 * nudge / abs(rate)
+    for _ in range(200):
+        if s >= t_limit:
+            return n_lo, n_hi, math.inf
+        p = _pitch_and_rate(motion, s)[0]
+        d = min(p - lo, hi - p)
+        if d <= tol:
+            return n_lo, n_hi, s
+        s += d / motion.pitch_rate_bound
+    return n_lo, n_hi, s  # an early (spurious) breakpoint is harmless
+
+
+def _rhs_gap(eqs: _Rattle, t, y):
+    """(q̇, v̇) with both flanks apart: drag, squeeze film of the approached flank, forcing."""
+    q, v = y.tolist()
+    _, acc1 = _angle_and_accel(eqs.motion, t)
+    f = -eqs.drag
+    if eqs.has_squeeze:
+        if v > 0.0:
+            f -= _squeeze(eqs, eqs.c - q) * v
+        elif v < 0.0:
+            f -= _squeeze(eqs, eqs.c + q) * v
+    return [v, f / eqs.m - eqs.r1 * acc1]
+
+
+def _rhs_drive(eqs: _Rattle, n_lo: int, n_hi: int, t, y):
+    """(q̇, v̇) in drive-flank contact with the pairs n_lo … n_hi meshing."""
+    q, v = y.tolist()
+    th, acc1 = _angle_and_accel(eqs.motion, t)
+    f = -_stiffness(eqs, th, n_lo, n_hi) * (eqs.c + q) - eqs.drag
+    if eqs.has_squeeze and v > 0.0:
+        f -= _squeeze(eqs, eqs.c - q) * v
+    return [v, f / eqs.m - eqs.r1 * acc1]
+
+
+def _rhs_coast(eqs: _Rattle, n_lo: int, n_hi: int, t, y):
+    """(q̇, v̇) in coast-flank contact with the pairs n_lo … n_hi meshing."""
+    q, v = y.tolist()
+    th, acc1 = _angle_and_accel(eqs.motion, t)
+    f = _stiffness(eqs, th, n_lo, n_hi) * (eqs.c - q) - eqs.drag
+    if eqs.has_squeeze and v < 0.0:
+        f -= _squeeze(eqs, eqs.c + q) * v
+    return [v, f / eqs.m - eqs.r1 * acc1]
+
+
+def _initial(eqs: _Rattle, t0: float, initial_state) -> tuple[np.ndarray, int]:
+    """The state at t0 and its regime (default: resting on the drive flank, see
+    :func:`simulate_reference`)."""
+    if initial_state is None:
+        n_lo, n_hi, _ = _window(eqs.motion, eqs.eps, t0, t0)
+        k0 = _stiffness(eqs, _angle_and_accel(eqs.motion, t0)[0], n_lo, n_hi)
+        y = np.array([-eqs.c - eqs.drag / k0, 0.0])
+    else:
+        q0, v0 = initial_state
+        y = np.array([_scalar("initial q", q0), _scalar("initial v", v0)])
+    if eqs.c + y[0] <= 0.0:
+        regime = _DRIVE
+    elif eqs.c - y[0] <= 0.0:
+        regime = _COAST
+    else:
+        regime = _GAP
+    return y, regime
+
+
+def _piece(eqs: _Rattle, regime: int, t: float, t_end: float):
+    """Right-hand side, terminal events and end time of the next piece of integration from t.
+
+    Each regime watches only the switches that leave it (a regime is entered at h = −δ and
+    left at h = +δ); a contact piece also ends at the next mesh-window switch.
+    """
+    c, delta = eqs.c, eqs.delta
+    if regime == _GAP:
+        events = [
+            _FlankEvent(c, +1, -delta, -1.0),  # → coast contact (h₊ falls to −δ)
+            _FlankEvent(c, -1, -delta, -1.0),  # → drive contact (h₋ falls to −δ)
+        ]
+        return partial(_rhs_gap, eqs), events, t_end
+    n_lo, n_hi, t_switch = _window(eqs.motion, eqs.eps, t, t_end)
+    if regime == _DRIVE:
+        fun = partial(_rhs_drive, eqs, n_lo, n_hi)
+        events = [_FlankEvent(c, -1, delta, 1.0)]  # h₋ rises to +δ
+    else:
+        fun = partial(_rhs_coast, eqs, n_lo, n_hi)
+        events = [_FlankEvent(c, +1, delta, 1.0)]  # h₊ rises to +δ
+    return fun, events, min(t_end, t_switch)
+
+
+def _integrate(eqs: _Rattle, y, regime, t0, times, t_end, method, rtol, atol, step_limit):
+    """Piecewise integration from (t0, y) to t_end, sampled at ``times``.
+
+    Returns the samples (2, N) of (q, v), the right-hand-side evaluations and the times of the
+    contact switches. Raises :class:`SolverError` if ``solve_ivp`` fails or stalls.
+    """
+    n_samples = times.size
+    out = np.empty((2, n_samples))
+    filled = 0
+    n_rhs = 0
+    event_times: list[float] = []
+    t = t0
+    stalled = 0
+    while t < t_end:
+        fun, events, bound = _piece(eqs, regime, t, t_end)
+        if bound <= t:  # a window switch closer than the time resolution
+            bound = min(t_end, math.nextafter(t, math.inf))
+        sol = solve_ivp(
+            fun,
+            (t, bound),
+            y,
+            method=method,
+            rtol=rtol,
+            atol=atol,
+            max_step=step_limit,
+            events=events,
+            dense_output=True,
+        )
+        if sol.status == -1:
+            raise SolverError(f"reference solver failed at t = {t:.9g} s: {sol.message}")
+        n_rhs += int(sol.nfev)
+        t_new = float(sol.t[-1])
+        i1 = int(np.searchsorted(times, t_new, side="right"))
+        if i1 > filled:
+            out[:, filled:i1] = sol.sol(times[filled:i1]) if sol.sol is not None else sol.y[:, -1:]
+            filled = i1
+        if sol.status == 1:  # a contact switch
+            hits = [(float(te[0]), i) for i, te in enumerate(sol.t_events) if te.size]
+            t_new, i = min(hits)
+            y = np.asarray(sol.y_events[i][0], dtype=float)
+            regime = _GAP_TARGETS[i] if regime == _GAP else _GAP
+            event_times.append(t_new)
+        else:
+            y = sol.y[:, -1].copy()
+        stalled = stalled + 1 if t_new <= t else 0
+        if stalled > 100:
+            raise SolverError(f"reference solver stalled at t = {t:.9g} s (Zeno switching?)")
+        t = t_new
+    if filled < n_samples:  # only possible through rounding at the very end
+        out[:, filled:] = y[:, None]
+    return out, n_rhs, event_times
 
 
 def simulate_reference(
@@ -170,255 +474,51 @@ def simulate_reference(
         If ``solve_ivp`` fails or the switching loop stops making progress.
     """
     g = geometry
-    m = float(g.equivalent_mass)
-    r1 = float(g.pitch_radius_driving)
-    r2 = float(g.pitch_radius_driven)
-    eps = float(g.total_contact_ratio)
-    eps_a = float(g.transverse_contact_ratio)
-    theta_p = float(g.base_pitch_angle)
-    c_a = float(g.stiffness_shape)
-    radius = float(g.curvature_radius)
-    width = float(g.axial_width)
-
-    a = _scalar("film_half_length", film_half_length)
-    t_b = _scalar("drag_torque", drag_torque)
-    mu = _scalar("viscosity", viscosity)
-    b = _scalar("backlash", backlash)
-    h_min = _scalar("min_film", min_film)
-    s_k = _scalar("stiffness_scale", stiffness_scale)
-    duration = _scalar("duration", duration)
-    sample_rate = _scalar("sample_rate", sample_rate)
-    burn_in = _scalar("burn_in", burn_in)
-    checks = {
-        "film_half_length": a >= 0,
-        "viscosity": mu >= 0,
-        "backlash": b > 0,
-        "min_film": h_min > 0,
-        "stiffness_scale": s_k > 0,
-        "duration": duration > 0,
-        "sample_rate": sample_rate > 0,
-        "burn_in": burn_in >= 0,
-        "rtol": rtol > 0,
-        "atol": atol > 0,
-    }
-    for name, ok in checks.items():
-        if not ok:
-            raise ParameterError(f"reference solver: {name} is out of range")
-    n_samples = round(duration * sample_rate)
+    x = _checked_inputs(
+        {
+            "film_half_length": film_half_length,
+            "drag_torque": drag_torque,
+            "viscosity": viscosity,
+            "backlash": backlash,
+            "min_film": min_film,
+            "stiffness_scale": stiffness_scale,
+            "duration": duration,
+            "sample_rate": sample_rate,
+            "burn_in": burn_in,
+        },
+        rtol,
+        atol,
+    )
+    n_samples = round(x["duration"] * x["sample_rate"])
     if n_samples < 1:
         raise ParameterError("reference solver: duration · sample_rate must be at least 1")
-
-    c = 0.5 * b
-    drag = t_b / r2
-    k_scale = s_k * float(g.pitch_point_stiffness)
-    shape_den = 1.125 * eps_a
-    s_pref = 3.0 * mu * width * radius**1.5
-    has_squeeze = a > 0.0 and mu > 0.0
-    delta = _HYSTERESIS * c
-
-    # -- drive: θ1(t) = θ0 + Ω t + Σ A_k cos(ω_k t) + B_k sin(ω_k t) ----------------------
-    omega = _scalar("drive.mean_speed", drive.mean_speed)
-    freq = _scalar("drive.frequency", drive.frequency)
-    theta0 = _scalar("drive.offset", drive.offset)
-    cos_c = np.asarray(drive.cos_coeffs, dtype=float)
-    sin_c = np.asarray(drive.sin_coeffs, dtype=float)
-    if cos_c.ndim != 1 or cos_c.shape != sin_c.shape:
-        raise ParameterError("reference solver: the drive must be a single (unbatched) drive")
-    harmonics = [
-        (2.0 * math.pi * freq * k, 4.0 * math.pi**2 * freq**2 * k**2, float(ak), float(bk))
-        for k, (ak, bk) in enumerate(zip(cos_c, sin_c, strict=True), start=1)
-        if ak != 0.0 or bk != 0.0
-    ]
-    # Bound on |dθ1/dt| / Θp, for the conservative search of mesh-window switches.
-    speed_bound = abs(omega) + sum(w * (abs(ak) + abs(bk)) for w, _, ak, bk in harmonics)
-    pitch_rate_bound = speed_bound / theta_p
-
-    def angle_and_accel(t):
-        th = theta0 + omega * t
-        acc = 0.0
-        for w, w2, ak, bk in harmonics:
-            ph = w * t
-            x = ak * math.cos(ph) + bk * math.sin(ph)
-            th += x
-            acc -= w2 * x
-        return th, acc
-
-    def pitch_and_rate(t):
-        th = theta0 + omega * t
-        rate = omega
-        for w, _, ak, bk in harmonics:
-            ph = w * t
-            cs, sn = math.cos(ph), math.sin(ph)
-            th += ak * cs + bk * sn
-            rate += w * (bk * cs - ak * sn)
-        return th / theta_p, rate / theta_p
-
-    # -- constitutive laws (pure Python floats) ------------------------------------------
-    def stiffness(theta1, n_lo, n_hi):
-        """K of eq. (4) with the pairs n_lo … n_hi in contact, N/m."""
-        p = theta1 / theta_p
-        total = 0.0
-        for n in range(n_lo, n_hi + 1):
-            z = abs((p - n - 0.5 * eps) / shape_den)
-            total += math.exp(c_a * z * z * z)
-        return k_scale * total
-
-    def squeeze(h):
-        """S(max(h, h_min)) of eq. (5), N s/m."""
-        if h < h_min:
-            h = h_min
-        y = a / math.sqrt(radius * h)
-        y2 = y * y
-        if y < 1e-2:
-            gy = (8.0 / 3.0) * y2 * y * (1.0 - 1.8 * y2 + (18.0 / 7.0) * y2 * y2)
-        else:
-            gy = math.atan(y) + y * (y2 - 1.0) / (1.0 + y2) ** 2
-        return s_pref * gy / (h * math.sqrt(h))
-
-    # -- mesh windows ------------------------------------------------------------------
-    def window(t, t_limit):
-        """Pairs in contact just after t, and the next time (≤ t_limit, else inf) they change."""
-        p, rate = pitch_and_rate(t)
-        tol = max(1e-11, 64.0 * np.finfo(float).eps * abs(p))
-        nudge = 10.0 * tol
-        pe = p + math.copysign(nudge, rate) if rate != 0.0 else p
-        n_hi = math.floor(pe)
-        n_lo = math.ceil(pe - eps)
-        lo, hi = max(n_hi, n_lo - 1 + eps), min(n_hi + 1, n_lo + eps)
-        if pitch_rate_bound == 0.0:
-            return n_lo, n_hi, math.inf
-        s = t
-        if rate != 0.0 and min(p - lo, hi - p) < nudge:  # just crossed into this window
-            s = t + 2.0 * nudge / abs(rate)
-        for _ in range(200):
-            if s >= t_limit:
-                return n_lo, n_hi, math.inf
-            p = pitch_and_rate(s)[0]
-            d = min(p - lo, hi - p)
-            if d <= tol:
-                return n_lo, n_hi, s
-            s += d / pitch_rate_bound
-        return n_lo, n_hi, s  # an early (spurious) breakpoint is harmless
-
-    # -- right-hand sides of the three regimes --------------------------------------------
-    def rhs_gap(t, y):
-        q, v = y.tolist()
-        _, acc1 = angle_and_accel(t)
-        f = -drag
-        if has_squeeze:
-            if v > 0.0:
-                f -= squeeze(c - q) * v
-            elif v < 0.0:
-                f -= squeeze(c + q) * v
-        return [v, f / m - r1 * acc1]
-
-    def make_contact_rhs(regime, n_lo, n_hi):
-        if regime == _DRIVE:
-
-            def rhs(t, y):
-                q, v = y.tolist()
-                th, acc1 = angle_and_accel(t)
-                f = -stiffness(th, n_lo, n_hi) * (c + q) - drag
-                if has_squeeze and v > 0.0:
-                    f -= squeeze(c - q) * v
-                return [v, f / m - r1 * acc1]
-
-        else:
-
-            def rhs(t, y):
-                q, v = y.tolist()
-                th, acc1 = angle_and_accel(t)
-                f = stiffness(th, n_lo, n_hi) * (c - q) - drag
-                if has_squeeze and v < 0.0:
-                    f -= squeeze(c + q) * v
-                return [v, f / m - r1 * acc1]
-
-        return rhs
-
-    # -- events: each regime watches only the switches that leave it ------------------------
-    def _event(fun, direction):
-        fun.terminal = True
-        fun.direction = direction
-        return fun
-
-    gap_events = [
-        _event(lambda t, y: (c - y[0]) + delta, -1.0),  # → coast contact (h₊ falls to −δ)
-        _event(lambda t, y: (c + y[0]) + delta, -1.0),  # → drive contact (h₋ falls to −δ)
-    ]
-    gap_targets = [_COAST, _DRIVE]
-    leave_drive = [_event(lambda t, y: (c + y[0]) - delta, 1.0)]  # h₋ rises to +δ
-    leave_coast = [_event(lambda t, y: (c - y[0]) - delta, 1.0)]  # h₊ rises to +δ
-
-    # -- initial state -----------------------------------------------------------------
-    t0 = -burn_in
-    if initial_state is None:
-        n_lo, n_hi, _ = window(t0, t0)
-        k0 = stiffness(angle_and_accel(t0)[0], n_lo, n_hi)
-        y = np.array([-c - drag / k0, 0.0])
-    else:
-        q0, v0 = initial_state
-        y = np.array([_scalar("initial q", q0), _scalar("initial v", v0)])
-    if c + y[0] <= 0.0:
-        regime = _DRIVE
-    elif c - y[0] <= 0.0:
-        regime = _COAST
-    else:
-        regime = _GAP
-
-    # -- piecewise integration -----------------------------------------------------------
-    times = np.arange(n_samples) / sample_rate
-    t_end = duration
-    out = np.empty((2, n_samples))
-    filled = 0
-    n_rhs = 0
-    event_times: list[float] = []
+    r1 = float(g.pitch_radius_driving)
+    a, mu, radius = x["film_half_length"], x["viscosity"], float(g.curvature_radius)
+    c = 0.5 * x["backlash"]
+    eqs = _Rattle(
+        motion=_motion(drive, float(g.base_pitch_angle)),
+        m=float(g.equivalent_mass),
+        r1=r1,
+        c=c,
+        drag=x["drag_torque"] / float(g.pitch_radius_driven),
+        eps=float(g.total_contact_ratio),
+        c_a=float(g.stiffness_shape),
+        k_scale=x["stiffness_scale"] * float(g.pitch_point_stiffness),
+        shape_den=1.125 * float(g.transverse_contact_ratio),
+        a=a,
+        radius=radius,
+        h_min=x["min_film"],
+        s_pref=3.0 * mu * float(g.axial_width) * radius**1.5,
+        has_squeeze=a > 0.0 and mu > 0.0,
+        delta=_HYSTERESIS * c,
+    )
+    t0 = -x["burn_in"]
+    y, regime = _initial(eqs, t0, initial_state)
+    times = np.arange(n_samples) / x["sample_rate"]
     step_limit = np.inf if max_step is None else float(max_step)
-    t = t0
-    stalled = 0
-    while t < t_end:
-        if regime == _GAP:
-            fun, events, bound = rhs_gap, gap_events, t_end
-        else:
-            n_lo, n_hi, t_switch = window(t, t_end)
-            fun = make_contact_rhs(regime, n_lo, n_hi)
-            events = leave_drive if regime == _DRIVE else leave_coast
-            bound = min(t_end, t_switch)
-        if bound <= t:  # a window switch closer than the time resolution
-            bound = min(t_end, math.nextafter(t, math.inf))
-        sol = solve_ivp(
-            fun,
-            (t, bound),
-            y,
-            method=method,
-            rtol=rtol,
-            atol=atol,
-            max_step=step_limit,
-            events=events,
-            dense_output=True,
-        )
-        if sol.status == -1:
-            raise SolverError(f"reference solver failed at t = {t:.9g} s: {sol.message}")
-        n_rhs += int(sol.nfev)
-        t_new = float(sol.t[-1])
-        i1 = int(np.searchsorted(times, t_new, side="right"))
-        if i1 > filled:
-            out[:, filled:i1] = sol.sol(times[filled:i1]) if sol.sol is not None else sol.y[:, -1:]
-            filled = i1
-        if sol.status == 1:  # a contact switch
-            hits = [(float(te[0]), i) for i, te in enumerate(sol.t_events) if te.size]
-            t_new, i = min(hits)
-            y = np.asarray(sol.y_events[i][0], dtype=float)
-            regime = gap_targets[i] if regime == _GAP else _GAP
-            event_times.append(t_new)
-        else:
-            y = sol.y[:, -1].copy()
-        stalled = stalled + 1 if t_new <= t else 0
-        if stalled > 100:
-            raise SolverError(f"reference solver stalled at t = {t:.9g} s (Zeno switching?)")
-        t = t_new
-    if filled < n_samples:  # only possible through rounding at the very end
-        out[:, filled:] = y[:, None]
-
+    out, n_rhs, event_times = _integrate(
+        eqs, y, regime, t0, times, x["duration"], method, rtol, atol, step_limit
+    )
     q, v = out
     return ReferenceSolution(
         time=times,
