@@ -65,7 +65,7 @@ def _independent(chain, burn):
     return chain[burn :: max(1, int(2 * tau))].reshape(-1, chain.shape[-1])
 
 
-def _posterior(chain, names, units, *, burn_in, **extra):
+def _posterior(chain, names, units, *, discard, **extra):
     """A Posterior around ``chain`` (steps, walkers, P) with placeholder diagnostics."""
     steps, walkers, p = chain.shape
     fields = dict(
@@ -80,7 +80,7 @@ def _posterior(chain, names, units, *, burn_in, **extra):
         recordings=[],
     )
     fields.update(extra)
-    return Posterior(names=names, units=units, chain=chain, burn_in=burn_in, **fields)
+    return Posterior(names=names, units=units, chain=chain, discard=discard, **fields)
 
 
 def _identity_noise(n_band, sigma=1.0):
@@ -245,7 +245,7 @@ def test_posterior_summaries_of_independent_normal_draws():
 
     rng = np.random.default_rng(NORMAL_DRAWS_SEED)
     chain = 1.5 + 0.2 * rng.standard_normal((400, 16, 1))
-    post = _posterior(chain, ["x"], ["1"], burn_in=100, ess=np.full(1, 16 * 300.0))
+    post = _posterior(chain, ["x"], ["1"], discard=100, ess=np.full(1, 16 * 300.0))
     med, lo, hi = post.intervals()["x"]
     near_median, near_end = INTERVAL_TOLERANCE
     assert abs(med - 1.5) < near_median and abs(lo - (1.5 - 1.96 * 0.2)) < near_end, (lo, med)
@@ -253,7 +253,7 @@ def test_posterior_summaries_of_independent_normal_draws():
     ess = float(az.ess(post.to_arviz())["x"])
     assert (1 - ESS_FACTOR) * 4800 < ess < (1 + ESS_FACTOR) * 4800, ess
     doc = post.to_json()
-    assert doc["parameters"]["x"]["unit"] == "1" and doc["sampler"]["burn_in"] == 100
+    assert doc["parameters"]["x"]["unit"] == "1" and doc["sampler"]["discard"] == 100
 
 
 def test_predictive_plot_draws_from_the_kept_chain(tmp_path, small_recording):
@@ -271,7 +271,7 @@ def test_predictive_plot_draws_from_the_kept_chain(tmp_path, small_recording):
         chain_z,
         [s.name for s in problem.specs],
         [s.unit for s in problem.specs],
-        burn_in=5,
+        discard=5,
         chain_z=chain_z,
         fit_options=options,
     )
