@@ -1,23 +1,22 @@
 """Read, write and check encoder recordings (HDF5 recording format, version 1).
 
-The format is specified in ``recording-format.md``. It is described here once, declaratively,
-by :data:`SCHEMAS` (one table of :class:`FieldSpec` rows per ``format_version``); reading and
-writing both validate by walking that table, so every violation is reported the same way: one
-:class:`~rattlefit.errors.RecordingError` naming the file, the field and the problem.
-
-Field names follow HDF5 paths: ``/gear_pair@teeth_driving`` is an attribute of a group
-(``/@format_version`` for the root group), ``/encoders/primary`` is a dataset.
+The format is specified in ``recording-format.md`` and described declaratively by
+:data:`~rattlefit.io.schema.SCHEMAS`; this module holds the data model (:class:`Recording` and
+its metadata groups), the cross-field checks, and reading, writing and inspecting files. Every
+violation is reported as one :class:`~rattlefit.errors.RecordingError` naming the file, the
+field and the problem. The schema names (:class:`~rattlefit.io.schema.FieldSpec`,
+:data:`~rattlefit.io.schema.SCHEMAS`, :data:`~rattlefit.io.schema.FORMAT_NAME`) are
+re-exported here.
 """
 
 from __future__ import annotations
 
 import math
 import os
-from collections.abc import Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import h5py
 import numpy as np
@@ -25,6 +24,18 @@ import numpy.typing as npt
 
 from rattlefit.errors import RecordingError
 from rattlefit.features.spectra import quantisation_std
+from rattlefit.io.schema import (
+    FORMAT_NAME,
+    FORMAT_VERSION,
+    MEMORY,
+    SCHEMAS,
+    TRUTH_GROUP,
+    FieldSpec,
+    Kind,
+    coerce_value,
+    guard,
+    validate_attrs,
+)
 from rattlefit.util import atomic_write
 
 __all__ = [
@@ -42,118 +53,6 @@ __all__ = [
     "read_truth",
     "write_recording",
 ]
-
-FORMAT_NAME = "rattlefit.io.recording"
-FORMAT_VERSION = 1
-TRUTH_GROUP = "/truth"
-MEMORY = "<memory>"
-
-# --- Declarative schema ------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Bounds:
-    """Closed or open interval for a finite number; ``None`` means unbounded on that side."""
-
-    lo: float | None = None
-    hi: float | None = None
-    lo_open: bool = False
-    hi_open: bool = False
-
-    def describe(self) -> str:
-        if self.hi is None:
-            return f"{'>' if self.lo_open else '>='} {self.lo:g}"
-        if self.lo is None:
-            return f"{'<' if self.hi_open else '<='} {self.hi:g}"
-        left, right = "(" if self.lo_open else "[", ")" if self.hi_open else "]"
-        return f"in {left}{self.lo:g}, {self.hi:g}{right}"
-
-    def accepts(self, v: float) -> bool:
-        if not math.isfinite(v):
-            return False
-        if self.lo is not None and (v <= self.lo if self.lo_open else v < self.lo):
-            return False
-        return not (self.hi is not None and (v >= self.hi if self.hi_open else v > self.hi))
-
-
-@dataclass(frozen=True)
-class OneOf:
-    """The value must be one of a fixed set."""
-
-    values: tuple[Any, ...]
-
-    def describe(self) -> str:
-        return "one of " + ", ".join(repr(v) for v in self.values)
-
-    def accepts(self, v: Any) -> bool:
-        return v in self.values
-
-
-Rule = Bounds | OneOf
-Kind = Literal["str", "int", "float", "counts"]
-_NUMBER = (int, float, np.integer, np.floating)
-
-POSITIVE = Bounds(lo=0, lo_open=True)
-NON_NEGATIVE = Bounds(lo=0)
-AT_LEAST_ONE = Bounds(lo=1)
-
-
-@dataclass(frozen=True)
-class FieldSpec:
-    """One row of the schema: where a field lives, what kind it is and which values are valid.
-
-    ``kind`` is ``"str"``, ``"int"``, ``"float"`` (scalar attributes) or ``"counts"`` (a 1-D
-    integer dataset). ``unit`` is informative and appears in error messages.
-    """
-
-    group: str
-    name: str
-    kind: Kind
-    rule: Rule | None = None
-    unit: str = ""
-    required: bool = True
-
-    @property
-    def path(self) -> str:
-        """Field name used in errors: ``/group@attr`` or ``/group/dataset``."""
-        if self.kind == "counts":
-            return f"{self.group.rstrip('/')}/{self.name}"
-        return f"{self.group}@{self.name}"
-
-
-_V1_FIELDS: tuple[FieldSpec, ...] = (
-    FieldSpec("/", "format", "str", OneOf((FORMAT_NAME,))),
-    FieldSpec("/", "format_version", "int"),  # dispatched on: must be a key of SCHEMAS
-    FieldSpec("/", "title", "str", required=False),
-    FieldSpec("/encoders", "sample_rate_hz", "float", POSITIVE, "Hz"),
-    FieldSpec("/encoders", "counts_per_rev", "int", AT_LEAST_ONE, "counts"),
-    FieldSpec("/encoders", "primary", "counts"),
-    FieldSpec("/encoders", "secondary", "counts"),
-    FieldSpec("/gear_pair", "teeth_driving", "int", AT_LEAST_ONE),
-    FieldSpec("/gear_pair", "teeth_driven", "int", AT_LEAST_ONE),
-    FieldSpec("/gear_pair", "pitch_diameter_driving_mm", "float", POSITIVE, "mm"),
-    FieldSpec("/gear_pair", "pitch_diameter_driven_mm", "float", POSITIVE, "mm"),
-    FieldSpec("/gear_pair", "face_width_driving_mm", "float", POSITIVE, "mm"),
-    FieldSpec("/gear_pair", "face_width_driven_mm", "float", POSITIVE, "mm"),
-    FieldSpec("/gear_pair", "normal_module_mm", "float", POSITIVE, "mm"),
-    FieldSpec("/gear_pair", "normal_pressure_angle_deg", "float", Bounds(0, 45, True, True), "deg"),
-    FieldSpec("/gear_pair", "helix_angle_deg", "float", Bounds(0, 60, False, True), "deg"),
-    FieldSpec("/gear_pair", "driven_inertia_kg_m2", "float", POSITIVE, "kg m^2"),
-    FieldSpec("/gear_pair", "center_distance_mm", "float", POSITIVE, "mm"),
-    FieldSpec("/gear_pair", "angular_backlash_rad", "float", POSITIVE, "rad"),
-    FieldSpec("/gear_pair", "angular_backlash_std_rad", "float", NON_NEGATIVE, "rad", False),
-    FieldSpec("/operating", "lubrication", "str", OneOf(("dry", "boundary", "oil_jet"))),
-    FieldSpec("/operating", "oil_temperature_c", "float", Bounds(-60, 250, True, True), "degC"),
-    FieldSpec("/operating", "drive_mean_speed_rad_s", "float", POSITIVE, "rad/s"),
-    FieldSpec("/operating", "drive_speed_amplitude_rad_s", "float", NON_NEGATIVE, "rad/s"),
-    FieldSpec("/operating", "drive_frequency_hz", "float", POSITIVE, "Hz"),
-    FieldSpec("/oil", "viscosity_40c_cst", "float", POSITIVE, "cSt"),
-    FieldSpec("/oil", "viscosity_100c_cst", "float", POSITIVE, "cSt"),
-    FieldSpec("/oil", "density_kg_m3", "float", POSITIVE, "kg/m^3"),
-)
-
-SCHEMAS: dict[int, tuple[FieldSpec, ...]] = {1: _V1_FIELDS}
-"""Schema of every supported ``format_version``: the table validation walks."""
 
 # --- Data model --------------------------------------------------------------------------------
 
@@ -297,102 +196,7 @@ class Recording:
         return quantisation_std(self.counts_per_rev, self.gear_ratio)
 
 
-# --- Validation --------------------------------------------------------------------------------
-
-
-@contextmanager
-def _guard(file: str, field: str) -> Iterator[None]:
-    """Turn any h5py/HDF5 failure (corrupt or truncated file) into a RecordingError."""
-    try:
-        yield
-    except RecordingError:
-        raise
-    except Exception as exc:  # h5py raises OSError, RuntimeError, KeyError, ValueError, ...
-        problem = f"cannot read (file truncated or corrupt?): {exc}"
-        raise RecordingError(file, field, problem) from None
-
-
-def _show(v: Any) -> str:
-    return repr(v.item() if isinstance(v, np.generic) else v)
-
-
-def _coerce(raw: Any, spec: FieldSpec, file: str) -> str | int | float:
-    """Normalise an attribute value (numpy scalar, bytes, size-1 array) to a Python value."""
-    err = lambda problem: RecordingError(file, spec.path, problem)  # noqa: E731
-    if isinstance(raw, Exception):  # stored by _raw_attrs for an unreadable value
-        raise err(f"cannot read value (file truncated or corrupt?): {raw}")
-    if isinstance(raw, h5py.Empty):
-        raise err("attribute has no value (empty dataspace)")
-    if isinstance(raw, np.ndarray):
-        if raw.size != 1:
-            raise err(f"expected a scalar {spec.kind}, got an array of shape {raw.shape}")
-        raw = raw.reshape(-1)[0]
-    if spec.kind == "str":
-        if isinstance(raw, bytes | np.bytes_):
-            try:
-                return bytes(raw).decode("utf-8")
-            except UnicodeDecodeError:
-                raise err(f"string {_show(raw)} is not valid UTF-8") from None
-        if isinstance(raw, str):
-            return str(raw)
-        raise err(f"expected a string, got {_show(raw)}")
-    if isinstance(raw, bool | np.bool_) or not isinstance(raw, _NUMBER):
-        expected = "an integer" if spec.kind == "int" else "a number"
-        raise err(f"expected {expected}, got {_show(raw)}")
-    if spec.kind == "int":
-        if isinstance(raw, int | np.integer):
-            return int(raw)
-        if not (math.isfinite(raw) and float(raw).is_integer()):
-            raise err(f"expected an integer, got non-integer {_show(raw)}")
-        return int(raw)
-    return float(raw)
-
-
-def _check_rule(value: Any, spec: FieldSpec, file: str) -> None:
-    if spec.rule is not None and not spec.rule.accepts(value):
-        unit = f" {spec.unit}" if spec.unit else ""
-        finite = "finite and " if isinstance(spec.rule, Bounds) else ""
-        problem = f"got {value!r}{unit}; must be {finite}{spec.rule.describe()}"
-        raise RecordingError(file, spec.path, problem)
-
-
-def _validate_attrs(
-    groups: Mapping[str, Mapping[str, Any] | None], file: str
-) -> dict[str, dict[str, Any]]:
-    """Walk the schema over raw attributes ``{group path: {name: value} or None if missing}``.
-
-    Returns normalised values ``{group path: {name: value}}``; raises on the first violation.
-    """
-    root = groups.get("/") or {}
-    header = {s.name: s for s in _V1_FIELDS if s.group == "/"}
-    for name in ("format", "format_version"):
-        if name not in root:
-            raise RecordingError(file, header[name].path, "missing required attribute")
-    fmt = _coerce(root["format"], header["format"], file)
-    _check_rule(fmt, header["format"], file)
-    version = _coerce(root["format_version"], header["format_version"], file)
-    if version not in SCHEMAS:
-        supported = ", ".join(str(v) for v in SCHEMAS)
-        raise RecordingError(
-            file,
-            header["format_version"].path,
-            f"unsupported format_version {version}; this reader supports {supported}",
-        )
-    out: dict[str, dict[str, Any]] = {}
-    for spec in SCHEMAS[version]:
-        if spec.kind == "counts":
-            continue
-        attrs = groups.get(spec.group)
-        if attrs is None:
-            raise RecordingError(file, spec.group, "missing required group")
-        if spec.name not in attrs:
-            if spec.required:
-                raise RecordingError(file, spec.path, "missing required attribute")
-            continue
-        value = _coerce(attrs[spec.name], spec, file)
-        _check_rule(value, spec, file)
-        out.setdefault(spec.group, {})[spec.name] = value
-    return out
+# --- Cross-field checks --------------------------------------------------------------------------
 
 
 def max_count_jump(counts_per_rev: int, sample_rate_hz: float, operating: OperatingPoint) -> int:
@@ -456,7 +260,7 @@ def check_recording(recording: Recording, file: str | None = None) -> None:
     ``file`` names the file in the error (default: ``recording.path`` or ``"<memory>"``).
     """
     file = file or recording.path or MEMORY
-    _validate_attrs(_groups_of(recording), file)
+    validate_attrs(_groups_of(recording), file)
     _check_consistency(recording, file)
 
 
@@ -483,7 +287,7 @@ def _raw_attrs(obj: h5py.Group, file: str) -> dict[str, Any]:
     """Attributes of a group; an unreadable value is stored as its exception (reported only
     if the schema needs that attribute)."""
     out: dict[str, Any] = {}
-    with _guard(file, obj.name):
+    with guard(file, obj.name):
         for name in obj.attrs:
             try:
                 out[name] = obj.attrs[name]
@@ -505,7 +309,7 @@ def _read_counts(f: h5py.File, spec: FieldSpec, file: str) -> np.ndarray:
         raise RecordingError(file, spec.path, f"dtype {ds.dtype} not allowed; must be int64/int32")
     if ds.ndim != 1:
         raise RecordingError(file, spec.path, f"must be 1-D, got shape {ds.shape}")
-    with _guard(file, spec.path):
+    with guard(file, spec.path):
         return np.asarray(ds[()], dtype=np.int64)
 
 
@@ -534,12 +338,12 @@ def read_recording(path: str | os.PathLike[str]) -> Recording:
         file (missing, not HDF5, truncated, missing field, wrong type or out of range).
     """
     file = os.fspath(path)
-    with _open(Path(file), file) as f, _guard(file, "/"):
+    with _open(Path(file), file) as f, guard(file, "/"):
         groups: dict[str, dict[str, Any] | None] = {"/": _raw_attrs(f, file)}
         for group in {s.group for schema in SCHEMAS.values() for s in schema} - {"/"}:
             obj = f.get(group)
             groups[group] = _raw_attrs(obj, file) if isinstance(obj, h5py.Group) else None
-        values = _validate_attrs(groups, file)
+        values = validate_attrs(groups, file)
         schema = SCHEMAS[values["/"]["format_version"]]
         counts = {s.name: _read_counts(f, s, file) for s in schema if s.kind == "counts"}
     enc = values["/encoders"]
@@ -564,7 +368,7 @@ def read_truth(path: str | os.PathLike[str]) -> dict[str, str | int | float] | N
     Returns ``None`` when the file has no such group. Values are plain Python str/int/float.
     """
     file = os.fspath(path)
-    with _open(Path(file), file) as f, _guard(file, TRUTH_GROUP):
+    with _open(Path(file), file) as f, guard(file, TRUTH_GROUP):
         obj = f.get(TRUTH_GROUP)
         if not isinstance(obj, h5py.Group):
             return None
@@ -573,7 +377,7 @@ def read_truth(path: str | os.PathLike[str]) -> dict[str, str | int | float] | N
             kind: Kind = "int" if isinstance(raw, np.integer) else "float"
             if isinstance(raw, str | bytes | np.bytes_):
                 kind = "str"
-            out[name] = _coerce(raw, FieldSpec(TRUTH_GROUP, name, kind), file)
+            out[name] = coerce_value(raw, FieldSpec(TRUTH_GROUP, name, kind), file)
         return out
 
 
