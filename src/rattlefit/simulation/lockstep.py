@@ -16,9 +16,9 @@ integrator for the batches the fit needs (many realisations and parameter points
   fourth-order interpolant (the one diffrax uses for ``SaveAt(ts=...)``); a step never spans
   more than ``samples_per_step`` sample intervals.
 
-Measured on the shared pair II files (one core, 3.5 s simulated, rtol 1e-5): 2–5× less time
-per member than diffrax with ``lax.map``, with band features equal within their chaotic
-spread. It is forward-mode differentiable (``jax.lax.while_loop``) but not reverse-mode:
+Its samples agree with diffrax's Tsit5 to within the tolerances (the band features within
+their chaotic spread), at a fraction of the time per member. It is forward-mode
+differentiable (``jax.lax.while_loop``) but not reverse-mode:
 :func:`rattlefit.simulation.solve.simulate` (diffrax) is the differentiable path.
 """
 
@@ -69,16 +69,15 @@ def _dense_monomials() -> tuple[tuple[float, ...], ...]:
 _DENSE = _dense_monomials()
 
 
-def _dense_output(y, kh, s):
+def dense_output(y, kh, s):
     """Tsit5's fourth-order dense output ``y + Σ_i b_i(s) h k_i`` at step fractions ``s``
     (B, S), from the step's start ``y`` (B, D) and its stages times the step ``kh`` (7 of
     (B, D)): (B, S, D).
 
     The stage sums are taken once a step (the coefficient of each power of s) and the
-    polynomial evaluated by Horner's rule, all elementwise: as a contraction of (B, S, 7)
-    weights with the stages (an ``einsum``), XLA on a CPU made it a batched matrix product
-    through a library call, a sixth of a lockstep step's time at 24 rows (benchmarks/README,
-    session 30).
+    polynomial evaluated by Horner's rule, all elementwise: written as a contraction of
+    (B, S, 7) weights with the stages, XLA on a CPU would make it a batched matrix product
+    through a slow library call.
     """
     powers = [_combine(row, kh)[:, None] for row in _DENSE]  # coefficients of s, …, s⁴
     s = s[..., None]
@@ -89,7 +88,22 @@ def _dense_output(y, kh, s):
 
 
 def _combine(coeffs, ks):
+    """``Σ_i coeffs[i] · ks[i]`` over the non-zero coefficients."""
     return sum(c * k for c, k in zip(coeffs, ks, strict=False) if c != 0.0)
+
+
+def _tsit5_attempt(f, args, t, y, k1, h):
+    """One attempted Tsit5 step of every member from ``(t, y)`` (B,), (B, D) with first stage
+    ``k1`` (B, D) and step ``h`` (B,): the proposed ``y1`` (B, D), the seven stages (the last
+    one is ``f(t + h, y1)``, the next step's first by FSAL) and the error estimate (B, D)."""
+    hc = h[:, None]
+    ks = [k1]
+    for i in range(5):
+        ks.append(f(t + _C[i] * h, y + hc * _combine(_A[i], ks), args))
+    y1 = y + hc * _combine(_B_SOL, ks)
+    ks.append(f(t + h, y1, args))
+    err = hc * _combine(_B_ERR, ks)
+    return y1, ks, err
 
 
 def solve_lockstep(
@@ -131,8 +145,8 @@ def solve_lockstep(
     result code per member (:data:`SUCCESS` or :data:`STEP_LIMIT`). A failed member's samples
     after the failure are zeros.
     """
-    # one trace of the vector field serves its seven calls a step (each traced anew took a
-    # quarter of a second: tracing, not compiling, was most of the cost of a first fit)
+    # one trace of the vector field serves its seven calls a step (tracing each call anew
+    # would dominate the cost of a first fit)
     f = jax.jit(jax.vmap(vector_field))
     y0 = jnp.asarray(y0, dtype=float)
     batch = y0.shape[0]
@@ -168,13 +182,8 @@ def solve_lockstep(
         h = jnp.minimum(jnp.minimum(dt, dt_max), t_last - t + 1e-9)
         h = jnp.where(active, jnp.maximum(h, 1e-14), 1e-9)
         hc = h[:, None]
-        ks = [k1]
-        for i in range(5):
-            ks.append(f(t + _C[i] * h, y + hc * _combine(_A[i], ks), args))
-        y1 = y + hc * _combine(_B_SOL, ks)
-        k7 = f(t + h, y1, args)
-        ks.append(k7)
-        err = hc * _combine(_B_ERR, ks)
+        y1, ks, err = _tsit5_attempt(f, args, t, y, k1, h)
+        k7 = ks[6]
         scale = atol_d + rtol * jnp.maximum(jnp.abs(y), jnp.abs(y1))
         e = jnp.sqrt(jnp.mean((err / scale) ** 2, axis=-1))
         e = jnp.where(jnp.isfinite(e) & jnp.all(jnp.isfinite(y1), axis=-1), e, 1e10)
@@ -188,7 +197,7 @@ def solve_lockstep(
         t_k = index / sample_rate
         inside = accept[:, None] & (t_k <= t1[:, None]) & (index < n_samples)
         s = jnp.clip((t_k - t[:, None]) / hc, 0.0, 1.0)
-        y_k = _dense_output(y, [hc * k for k in ks], s)  # (B, S, D)
+        y_k = dense_output(y, [hc * k for k in ks], s)  # (B, S, D)
         out = out.at[members, index].set(jnp.where(inside[..., None], y_k, out[members, index]))
         keep = accept[:, None]
         return (

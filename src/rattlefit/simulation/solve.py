@@ -126,7 +126,8 @@ def solve_rows(
     sensitivity: str = "forward",
     stiffness_tables: Float[Array, "T 2 n"] | None = None,
 ) -> Solution:
-    """B solves stepped together by :func:`rattlefit.simulation.lockstep.solve_lockstep` (traceable).
+    """B solves stepped together by :func:`~rattlefit.simulation.lockstep.solve_lockstep`
+    (traceable).
 
     Every array leaf of ``models``, ``params`` and ``drives`` has the leading axis B: each
     row may be another gear pair, parameter set and drive. With ``stiffness_tables`` the
@@ -229,30 +230,23 @@ def simulate(
         params,
         drive,
         jnp.asarray(y0, dtype=float),
-        **_static_options(duration, sample_rate, burn_in, rtol, atol, max_steps, sensitivity),
+        **static_options(duration, sample_rate, burn_in, rtol, atol, max_steps, sensitivity),
     )
 
 
 #: Characteristic sizes of the state, (q in m, v in m/s), where the flanks have an oil film: the
 #: fit's absolute tolerances are its ``rtol`` times these (:func:`absolute_tolerances`). 1 mm is
 #: a few backlashes; 30 mm/s is the rattle's impact velocity (the median |v| of a mild-rattle
-#: step in flight is 15–20 mm/s). Until session 32 both were 1e-3 (:data:`DRY_STATE_SCALES`),
-#: so that v was held to 10 nm/s absolute: resting on a flank (v about 0.1 mm/s) the
-#: controller resolved velocity fluctuations that move no feature.
-#: ``benchmarks/state_tolerance.py`` (48 realisations at the truth of three shared files against
-#: a tight lockstep reference; band-mean differences in standard errors with the fit's floor,
-#: about 1 between independent chaotic ensembles): the mild file rms z 0.05 → 0.06 with 0.77×
-#: the steps, the pair I oil-jet file 0.01 → 0.02 with 0.82×, the dry file (chaotic) 0.74 →
-#: 1.05 with as many steps on average. 100 mm/s saved more (0.69×) but moved the mild file's
-#: bands to 0.29, and rtol 1e-4 to 0.74 (benchmarks/README, session 32).
+#: step in flight is 15–20 mm/s). A tighter velocity scale makes the controller resolve
+#: fluctuations of a gear resting on its film that move no feature; a looser one moves the band
+#: features (``benchmarks/state_tolerance.py`` measures both against a tight reference).
 STATE_SCALES = (1e-3, 3e-2)
 #: The same for dry flanks: the velocity held as tightly as the position. Without a film to
-#: rest on, a dry pair's steps are set by its impacts, so a looser velocity tolerance saves
-#: none (the dry shared file: 1.00× the mean steps), and what a dry recording is fitted and
-#: diagnosed on is the impact itself, where the velocity reverses under the mesh force and
-#: flank friction acts: with v at 10 or 30 mm/s the withheld-friction diagnosis of
-#: ``tests/test_diagnose.py`` named run-out instead (friction 992 → 723 and 1809 → 1451), with
-#: 1 mm/s friction (1016 → 598, p 0.00017).
+#: rest on, a dry pair's steps are set by its impacts, so a looser velocity tolerance saves no
+#: steps, and what a dry recording is fitted and diagnosed on is the impact itself, where the
+#: velocity reverses under the mesh force and flank friction acts: a looser velocity tolerance
+#: blurs exactly that (the withheld-friction diagnosis of ``tests/test_diagnose.py`` then names
+#: run-out instead of friction).
 DRY_STATE_SCALES = (1e-3, 1e-3)
 
 
@@ -274,7 +268,11 @@ def _atol_option(atol) -> float | tuple[float, ...]:
     return atol
 
 
-def _static_options(duration, sample_rate, burn_in, rtol, atol, max_steps, sensitivity):
+def static_options(duration, sample_rate, burn_in, rtol, atol, max_steps, sensitivity):
+    """The solver options of :func:`simulate` as the hashable keyword arguments of its compiled
+    core: ``n_samples = round(duration · sample_rate)`` and the rest as Python floats/ints
+    (``atol`` one float or a (q, v) pair). Raises ``ValueError`` for fewer than two samples or
+    an ``atol`` of another length."""
     n = round(duration * sample_rate)
     if n < 2:
         raise ValueError(f"duration {duration} s gives fewer than two samples")
@@ -330,7 +328,7 @@ def simulate_batch(
         drive,
         jnp.asarray(y0, dtype=float),
         batch=batch,
-        **_static_options(duration, sample_rate, burn_in, rtol, atol, max_steps, sensitivity),
+        **static_options(duration, sample_rate, burn_in, rtol, atol, max_steps, sensitivity),
     )
     return eqx.tree_at(lambda s: (s.time, s.theta1), sols, (sols.time[0], sols.theta1[0]))
 
