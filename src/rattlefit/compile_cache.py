@@ -2,16 +2,14 @@
 
 Every identification compiles the simulator, its batched evaluation and the
 Levenberg–Marquardt loop before it simulates anything; in a fresh process that is a fixed cost
-of each ``rattlefit identify`` (measured: the first batched evaluation of a fit takes 9.1 s in
-a fresh process and 2.9 s with the program read back from the cache). Until session 22 the
-fit's host-side arithmetic ran in eager ``jax.numpy`` and compiled hundreds of small programs
-besides (572, 15 s, on a cold identify of the mild shared file; a quick identify of a 3 s file
-took 33 s cold, 19 s warm); it now runs in numpy (:func:`rattlefit.util.array_namespace`),
-and a cold identify compiles 49 programs in 4.6 s.
+of each ``rattlefit identify``, several seconds, that a cached program skips. (The fit's
+host-side arithmetic runs in numpy, :func:`rattlefit.util.array_namespace`, so it compiles
+nothing.)
+
 JAX can keep compiled programs on disk and reuse them in a later process whose code, JAX
 version, device count and XLA flags (the instruction-set cap of
 :mod:`rattlefit.reproducibility` included) are the same. A reused program is the program
-compiled before, so results do not change (measured: the same features to the last bit).
+compiled before, so results do not change (the same features to the last bit).
 
 The command line turns the cache on (:func:`use_compilation_cache`); in Python call it before
 the first fit. ``RATTLEFIT_CACHE_DIR`` chooses the directory, ``off`` (or empty) disables it;
@@ -29,10 +27,9 @@ import jax
 
 #: The environment variable naming the cache directory ("off" or empty: no cache).
 CACHE_ENV = "RATTLEFIT_CACHE_DIR"
-#: Programs that took less than this to compile (s) are not kept. Zero: small programs (about
-#: 0.05 s each) add up (measured before session 22, when the fit's host side still compiled
-#: hundreds: a quick identify of a 3 s file on 2 cores 33.2 s cold, 19.0 s warm with every
-#: program kept, 30.1 s with only those above 0.5 s; 326 files, 1.9 MB).
+#: Programs that took less than this to compile (s) are not kept. Zero: many small programs
+#: (about 0.05 s each) add up to more than the few large ones, and keeping them all costs
+#: only a few megabytes of disk.
 MIN_COMPILE_TIME = 0.0
 
 

@@ -1,14 +1,11 @@
 """The same seed gives the same numbers on the same kind of CPU, and says which that was.
 
-XLA compiles for the CPU it finds: with AVX-512 a vectorised transcendental or a fused
-multiply–add rounds differently from the same code compiled for AVX2. Rattle is chaotic, so
-that last-bit difference grows into another realisation of the motion within tens of
-milliseconds of simulated time, and a seeded synthetic recording, fit or diagnosis comes out
-differently on two machines of one cloud. Measured (session 13, pair II at 65.0 mm, 10 % at
-8 Hz, seed 11, on an AMD EPYC with AVX-512): capping XLA at SSE4.2, AVX2 and AVX-512 gave three
-different recordings, the uncapped default the AVX-512 one; the seeded fit of
-``tests/test_fit.py::test_mild_rattle_bounds_a`` bounded ``a`` with one and missed it with the
-other, so the test suite's verdict depended on the machine CI happened to get.
+XLA compiles for the CPU it finds: with a wider instruction set a vectorised transcendental or
+a fused multiply–add rounds differently from the same code compiled for a narrower one. Rattle
+is chaotic, so that last-bit difference grows into another realisation of the motion within
+tens of milliseconds of simulated time, and a seeded synthetic recording, fit or diagnosis
+comes out differently under different instruction sets (``benchmarks/isa_cost.py`` shows the
+effect and its cost).
 
 On import, rattlefit therefore caps XLA's CPU instruction set at :data:`DEFAULT_CPU_ISA`
 (AVX2, with FMA: every x86-64 server CPU since about 2015 has it) by adding
@@ -16,14 +13,13 @@ On import, rattlefit therefore caps XLA's CPU instruction set at :data:`DEFAULT_
 cap the user already set in ``XLA_FLAGS`` is kept. ``RATTLEFIT_CPU_ISA`` chooses another cap,
 or ``native`` for none. On other architectures (aarch64) and on GPUs nothing is changed.
 
-The cap is not the whole story: the CPU model matters too. The same code, JAX and cap gave
-``benchmarks/isa_cost.py``'s seeded recording the hash ``642db89cad49`` on an AVX-512 EPYC
-(session 14) and ``8fca3d47f972`` on an EPYC without AVX-512 (family 25, model 1; session
-27), presumably because LLVM tunes its instruction selection (which multiply–adds it fuses,
-how it orders a vectorised sum) for the CPU it finds. So results are reproducible for a
-given seed, JAX version, device count, cap and CPU model, which :func:`platform_info`
-reports (every fit's JSON carries it), and a seeded statistical test must hold with a margin
-over realisations, not at one.
+The cap is not the whole story: the CPU model matters too, because LLVM tunes its instruction
+selection (which multiply–adds it fuses, how it orders a vectorised sum) for the CPU it finds,
+so the same code, JAX version and cap can give another realisation on another CPU model.
+Results are therefore reproducible for a given seed, JAX version, device count, instruction-set
+cap **and CPU model**, not across machines in general; :func:`platform_info` reports all of
+them (every fit's JSON carries it), and a seeded statistical test must hold with a margin over
+realisations, not at one.
 """
 
 from __future__ import annotations
@@ -52,7 +48,8 @@ def _backend_started() -> bool:
 
 
 def pin_cpu_isa(isa: str | None = None) -> str:
-    """Cap XLA's CPU instruction set so that results do not depend on the machine.
+    """Cap XLA's CPU instruction set so that results do not depend on which instruction-set
+    extensions the CPU offers beyond the cap.
 
     ``isa`` defaults to ``$RATTLEFIT_CPU_ISA``, else :data:`DEFAULT_CPU_ISA`; ``"native"``
     leaves XLA alone. A cap already in ``XLA_FLAGS`` wins. Returns the cap in effect
@@ -86,8 +83,8 @@ def cpu_isa() -> str:
 
 
 def cpu_model(cpuinfo: str | None = None) -> str:
-    """The CPU's name, vendor, family and model, e.g. ``"AMD EPYC (AuthenticAMD family 25
-    model 1)"``: a seeded result depends on it (the module's docstring). From
+    """The CPU's name, vendor, family and model, as ``"<model name> (<vendor_id> family <n>
+    model <n>)"``: a seeded result depends on it (the module's docstring). From
     ``/proc/cpuinfo`` (or the text ``cpuinfo``) where there is one, else what
     :func:`platform.processor` says ("" if nothing)."""
     if cpuinfo is None:

@@ -28,8 +28,8 @@ def array_namespace(*xs):
 
     The host side of a fit (its costs, band spreads, finite-difference points and interval
     bookkeeping) runs on concrete arrays of ever new shapes, and every new shape of an eager
-    ``jax.numpy`` operation compiles a program of its own (measured on the mild shared file's
-    identify from cold: 572 programs, 15 s, for about a hundred host-side calls). Functions
+    ``jax.numpy`` operation compiles a program of its own (hundreds of programs, many seconds,
+    for one identification). Functions
     that serve both sides take their array module from this, so that the traced side (the
     Levenberg–Marquardt residual, the simulator's inputs) stays in JAX and the host side
     compiles nothing.

@@ -4,10 +4,9 @@ The fit compares one recording's spectral features with ``n`` simulated realisat
 same parameters, released from different positions in the gap. Rattle is chaotic, and its
 realisations do not scatter like a Gaussian: a few of them settle into a different regime (a
 periodic orbit, or in dry conditions, where the model has no dissipation at all, a different
-invariant set) whose features sit far from the others in every band at once. Measured at the
-truth of synthetic recordings (24 realisations, ``d²`` of :func:`regime_weights`): pair I dry
-65.0 mm 10 % at 8 Hz 15–42 for 3 of 24; pair II boundary 65.0 mm 10 % at 8 Hz 10–24 for 4;
-pair I oil jet 66.0 mm 8–14 for 2; the rest below 5.
+invariant set) whose features sit far from the others in every band at once: at the truth
+of a synthetic recording, typically up to a few of 24 realisations lie at ``d²`` 10–40 (of
+:func:`regime_weights`), the rest below 5.
 
 One such realisation moves the mean of six by a third of its excursion and inflates the spread
 of every band, so the fit then matches data that belong to the common regime with a wrong
@@ -73,9 +72,7 @@ def regime_weights(features, threshold: float | None, *, scale_floor: float = 0.
 MIN_IN_REGIME = 2
 #: … and at least this share of them. A regime that fewer releases reach is too improbable to
 #: be the recording's, however near it lies: a fit that may pick the nearest of many rare
-#: orbits fits noise (measured on the dry coverage case with an oil-jet companion: a regime
-#: 2 of 24 releases reach gave χ² 62 and a viscosity interval that missed; a sixth keeps
-#: the rare-regime boundary case, 4 of 24 at its truth).
+#: orbits fits noise, while a sixth still admits a genuine rarer regime of the recording.
 MIN_REGIME_SHARE = 1 / 6
 
 
@@ -89,10 +86,7 @@ def _target_regime(f, med, scale, common, target, xp):
     Rattle has coexisting attractors: at one parameter point some releases settle into one
     regime and the rest into another, and a recording is in one of them, whichever its
     history chose. Matched against the common regime's mean, a recording of the rarer one
-    is explained only by other parameters (measured on the independent simulator's pair II
-    oil-jet file, 65.6 mm, 20 % at 16 Hz: at its truth with the backlash its range implies,
-    7 of 16 releases reach a regime within rms 0.07 of its band features and 9 a periodic
-    orbit 0.63 away, and the fit put ``drag_torque`` at 2.4 times its truth).
+    is explained only by other (wrong) parameters.
     """
 
     def dist2(x, centre):

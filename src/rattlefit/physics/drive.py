@@ -123,9 +123,9 @@ class Drive(eqx.Module):
 
         The same series as :meth:`angle` and :meth:`acceleration`, with the harmonics'
         cosines and sines from one cosine and sine by the angle-addition recurrence, and
-        those two from the phase f·t in cycles by :func:`~rattlefit.physics.elementary.sin_cos_cycles`
-        (polynomials that vectorise, where ``jnp.sin`` and ``jnp.cos`` are a library call a
-        value on a CPU).
+        those two from the phase f·t in cycles by
+        :func:`~rattlefit.physics.elementary.sin_cos_cycles` (polynomials that vectorise, where
+        ``jnp.sin`` and ``jnp.cos`` are a library call a value on a CPU).
         """
         w = 2 * jnp.pi * self.frequency
         sin1, cos1 = sin_cos_cycles(self.frequency * t)

@@ -1,12 +1,10 @@
 """Sine, cosine and arctangent as polynomials that XLA vectorises on a CPU.
 
 XLA compiles ``jnp.sin``, ``jnp.cos`` and ``jnp.arctan`` on a CPU to one library call per
-element, while sums and products of a batch run as vector instructions. Measured in a loop
-over 240 values (one core, the AVX2 cap): 10–11 ns a value for each of sin, cos and arctan,
-against 2.3 ns for :func:`sin_cos_cycles` (both together) and 0.8 ns for a square root. The
-vector field calls the drive's sine and cosine and the squeeze film's arctangent six times a
-Tsit5 step for every row of a batch, so these three were about a fifth of a lockstep step at
-the fit's 24 rows (benchmarks/README, session 30).
+element, while sums and products of a batch run as vector instructions, several times
+faster. The vector field calls the drive's sine and cosine and the squeeze film's arctangent
+six times a Tsit5 step for every row of a batch, so these library calls would be a large share
+of a lockstep step (``benchmarks/elementwise_cost.py`` times both forms).
 
 Both are accurate to a few units in the last place over their whole range (tests against
 numpy); they round differently from the library calls, which chaos turns into another

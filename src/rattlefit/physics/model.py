@@ -210,8 +210,8 @@ def squeeze_coefficient(h, a, viscosity, radius, width):
     the closed form loses digits to cancellation.
     """
     # one square root serves y and R^{3/2} h^{-3/2} = R³ / (R h)^{3/2}: the power h^{-1.5} (a log
-    # and an exp) made the squeeze force a fifth of a lockstep step's time (benchmarks/README,
-    # session 29). Outside a trace (a fit's host side: equivalent_viscosity) it is numpy.
+    # and an exp) would dominate the squeeze force's cost. Outside a trace (a fit's host side:
+    # equivalent_viscosity) it is numpy.
     xp = array_namespace(h, a, viscosity, radius, width)
     atan = arctan if xp is jnp else np.arctan
     root = xp.sqrt(radius * h)
@@ -437,10 +437,9 @@ def share_stiffness_tables(models: RattleModel) -> tuple[RattleModel, Array | No
     A batch of simulations indexes each row's model out of such a stack. Indexing the tables
     along with the rest would give every row a copy of its table (the shared file's: 64 KB a
     row, 1.5 MB for a device's 24 rows), and the interpolation would read it from memory at
-    every vector-field call; :func:`rattlefit.simulation.solve.solve_rows` given the stack instead
-    reads each row's table out of the T shared ones, which stay in cache. Measured on the
-    lockstep integrator with 24 rows (one core, the mild shared file): 25–30 % less time a
-    step. Models whose K is summed exactly (no table) are returned unchanged, with None.
+    every vector-field call; :func:`~rattlefit.simulation.solve.solve_rows` given the stack
+    instead reads each row's table out of the T shared ones, which stay in cache. Models whose
+    K is summed exactly (no table) are returned unchanged, with None.
     """
     if models.stiffness_table is None:
         return models, None

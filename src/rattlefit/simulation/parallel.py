@@ -7,9 +7,9 @@ cores idle. :func:`use_cpu_cores` asks JAX for one CPU device per core — it mu
 executes anything, which is why the command-line interface calls it first thing — and
 :func:`map_rows` then splits a batch evenly over the devices with ``shard_map``; each device
 runs its share with ``jax.lax.map``. With one device :func:`map_rows` is exactly
-``jax.lax.map``, so its results never depend on whether the cores were enabled (measured: the
-features agree to the last bit). :func:`map_blocks` gives each device its whole share at once,
-for the lockstep integrator of :mod:`rattlefit.simulation.lockstep`; a vectorised transcendental may
+``jax.lax.map``, so its results never depend on whether the cores were enabled (the features
+agree to the last bit). :func:`map_blocks` gives each device its whole share at once, for the
+lockstep integrator of :mod:`rattlefit.simulation.lockstep`; a vectorised transcendental may
 round differently in another batch layout, and rattle's chaos grows that into another
 realisation, so results computed that way (every fit) are reproducible for a given seed and
 device count.
