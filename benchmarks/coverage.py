@@ -1,10 +1,10 @@
 """Coverage study of `identify` on synthetic recordings over the paper's operating grid.
 
 For a seeded sample of (pair, lubrication, centre distance, fluctuation, frequency), this
-simulates a recording with known truth (`rattlefit.simulation.synthetic.synthesize`), identifies it with
-the default `FitOptions`, and reports whether each 95 % interval holds the truth and whether the
-fit called `a` identified. Issue 3's check: truth inside the interval in ≥ 90 % of cases, and
-`a` within 20 % where reported identified.
+simulates a recording with known truth (`rattlefit.simulation.synthetic.synthesize`),
+identifies it with the default `FitOptions`, and reports whether each 95 % interval holds the
+truth and whether the fit called `a` identified. Issue 3's check: truth inside the interval in
+≥ 90 % of cases, and `a` within 20 % where reported identified.
 
     python benchmarks/coverage.py [--cases 10] [--seed 0] [--json out.json] [--only K ...]
                                   [--rtol R] [--dither D] [--set FIELD=JSON ...] [--quiet]
@@ -18,8 +18,8 @@ case jointly with an oil-jet recording of the same pair and operating point (one
 lubrication, the oil, `T_b` and `h_min` shared); `a` in the table is then the case's own
 lubrication's, and the companion's `a` is reported beside it.
 
-Each case costs one identification (100–450 s on 2 cores), so the default sample of 10 takes
-~35 minutes. Seeds are printed; every case is reproducible.
+Each case costs one identification (minutes on 2 cores), so the default sample of 10 takes
+about half an hour or more. Seeds are printed; every case is reproducible.
 """
 
 from __future__ import annotations
@@ -32,12 +32,13 @@ import time
 import numpy as np
 
 import rattlefit as rf
-from _study import add_set_argument, set_overrides, write_json
-from rattlefit.inference.fit import FitOptions, identify
+from rattlefit.inference.identify import identify
+from rattlefit.inference.options import FitOptions
 from rattlefit.inference.parameters import film_names, parse_prior
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.physics.oil import dynamic_viscosity
 from rattlefit.simulation.synthetic import synthesize
+from studies import add_set_argument, set_overrides, write_json
 
 LUBRICATION = {"dry": (0.0, 20.0), "boundary": (0.085e-3, 20.0), "oil_jet": (1.0e-3, 25.0)}
 DRAG = {"I": 0.03, "II": 0.025}
@@ -48,7 +49,8 @@ GRID = list(
 )
 
 
-def main() -> None:
+def parse_args() -> tuple[argparse.Namespace, dict]:
+    """The command line, and the ``FitOptions`` overrides it asks for."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", type=int, default=10)
     ap.add_argument("--seed", type=int, default=0)
@@ -88,6 +90,51 @@ def main() -> None:
         except rf.RattlefitError as exc:
             ap.error(f"--prior: {exc}")
     overrides.update(set_overrides(ap, args.set))
+    return args, overrides
+
+
+def companion_recording(g, op, pair: str, lubrication: str, seed: int):
+    """A recording of the same pair and operating point under ``lubrication`` (its truth a
+    and oil temperature), and that truth's ``a``."""
+    a_c, temp_c = LUBRICATION[lubrication]
+    mu_c = dynamic_viscosity(temp_c, 156.5, 15.7, 890.0)
+    op_c = dataclasses.replace(op, lubrication=lubrication, oil_temperature_c=temp_c)
+    params_c = rf.RattleParams(a_c, DRAG[pair], mu_c, g.backlash)
+    return synthesize(g, op_c, params_c, seed=seed)[0], a_c
+
+
+def interval_row(p, truth: float) -> dict:
+    """One parameter's interval against its truth."""
+    return {
+        "truth": truth,
+        "lower": p.lower,
+        "upper": p.upper,
+        "estimate": p.estimate,
+        "identified": p.identified,
+        "bound": p.bound,
+        "covered": bool(p.lower <= truth <= p.upper),
+    }
+
+
+def print_summary(rows: list[dict]) -> None:
+    """Coverage over every case, how often ``a`` was identified and within 20 %, and the
+    coverage of the cases not flagged as a poor fit."""
+    total = sum(3 for _ in rows)
+    covered = sum(r[k]["covered"] for r in rows for k in ("a", "drag_torque", "viscosity"))
+    print(f"coverage: {covered}/{total} = {covered / total:.0%} (aim ≥ 90 %)")
+    within = [r["a_within_20pct"] for r in rows if r["a_within_20pct"] is not None]
+    print(f"a identified in {len(within)}/{len(rows)} cases; within 20 % in {sum(within)}")
+    flagged = [r for r in rows if r["poor_fit"]]
+    unflagged = [r for r in rows if not r["poor_fit"]]
+    hit = sum(r[k]["covered"] for r in unflagged for k in ("a", "drag_torque", "viscosity"))
+    print(
+        f"{len(flagged)} case(s) flagged as a poor fit; coverage of the others: "
+        f"{hit}/{3 * len(unflagged)}"
+    )
+
+
+def main() -> None:
+    args, overrides = parse_args()
     print(
         f"{rf.use_cpu_cores()} JAX device(s); seed {args.seed}; FitOptions overrides {overrides}",
         flush=True,
@@ -111,11 +158,8 @@ def main() -> None:
             if lub == args.companion:
                 print(f"[{n + 1}/{len(picks)}] pair {pair}, {lub}: skipped (the companion's)")
                 continue
-            a_c, temp_c = LUBRICATION[args.companion]
-            mu_c = dynamic_viscosity(temp_c, 156.5, 15.7, 890.0)
-            op_c = dataclasses.replace(op, lubrication=args.companion, oil_temperature_c=temp_c)
-            params_c = rf.RattleParams(a_c, DRAG[pair], mu_c, g.backlash)
-            recs.append(synthesize(g, op_c, params_c, seed=seed + 1)[0])
+            rec_c, a_c = companion_recording(g, op, pair, args.companion, seed + 1)
+            recs.append(rec_c)
             film, film_c = film_names([lub, args.companion])
         t0 = time.perf_counter()
         res = identify(
@@ -135,24 +179,10 @@ def main() -> None:
             "poor_fit": res.poor_fit,
         }
         for name, value in truth.items():
-            p = res.parameters[film if name == "a" else name]
-            row[name] = {
-                "truth": value,
-                "lower": p.lower,
-                "upper": p.upper,
-                "estimate": p.estimate,
-                "identified": p.identified,
-                "bound": p.bound,
-                "covered": bool(p.lower <= value <= p.upper),
-            }
+            row[name] = interval_row(res.parameters[film if name == "a" else name], value)
         if args.companion:
-            p = res.parameters[film_c]
-            row["a_companion"] = {
-                "truth": a_c,
-                "lower": p.lower,
-                "upper": p.upper,
-                "covered": bool(p.lower <= a_c <= p.upper),
-            }
+            c = interval_row(res.parameters[film_c], a_c)
+            row["a_companion"] = {k: c[k] for k in ("truth", "lower", "upper", "covered")}
         a_est = row["a"]
         row["a_within_20pct"] = (
             None if not a_est["identified"] or a == 0 else abs(a_est["estimate"] / a - 1) <= 0.2
@@ -168,18 +198,7 @@ def main() -> None:
             f"{row['wall_s']:.0f} s",
             flush=True,
         )
-    total = sum(3 for _ in rows)
-    covered = sum(r[k]["covered"] for r in rows for k in ("a", "drag_torque", "viscosity"))
-    print(f"coverage: {covered}/{total} = {covered / total:.0%} (aim ≥ 90 %)")
-    within = [r["a_within_20pct"] for r in rows if r["a_within_20pct"] is not None]
-    print(f"a identified in {len(within)}/{len(rows)} cases; within 20 % in {sum(within)}")
-    flagged = [r for r in rows if r["poor_fit"]]
-    unflagged = [r for r in rows if not r["poor_fit"]]
-    hit = sum(r[k]["covered"] for r in unflagged for k in ("a", "drag_torque", "viscosity"))
-    print(
-        f"{len(flagged)} case(s) flagged as a poor fit; coverage of the others: "
-        f"{hit}/{3 * len(unflagged)}"
-    )
+    print_summary(rows)
     if args.json:
         doc = {"options": overrides, "seed": args.seed, "companion": args.companion, "cases": rows}
         write_json(args.json, doc, default=dataclasses.asdict)  # the priors' specs

@@ -7,8 +7,8 @@ study measures, at the truth of the joint-fit test's backlash sweep (pair II, bo
 at 8 Hz), the gap between
 
 * E[data]: the mean features of `--realisations` undithered realisations made the way
-  `rattlefit.simulation.synthetic.synthesize` makes a recording (commanded drive, rtol 1e-7, nothing set
-  aside), and
+  `rattlefit.simulation.synthetic.synthesize` makes a recording (commanded drive, rtol 1e-7,
+  nothing set aside), and
 * the fit's mean features (measured drive, the fit's rtol, regimes set aside) with each dither,
 
 in units of one recording's run-to-run spread, then the undithered profile of that gap along
@@ -16,8 +16,8 @@ log `drag_torque` (the other parameters at the truth).
 
     python benchmarks/dither_bias.py [--center-distance 65.4] [--realisations 24] [--seed 5]
 
-Costs 1–3 minutes at 65.4 mm on 2 cores; at 65.0 mm the rtol 1e-7 reference takes tens of
-minutes. Results are in benchmarks/README.md ("Dither bias in mild rattle").
+A few minutes at 65.4 mm on 2 cores; at 65.0 mm the rtol 1e-7 reference takes far longer.
+benchmarks/README.md ("Dither bias in mild rattle") discusses the outcome.
 """
 
 from __future__ import annotations
@@ -29,7 +29,9 @@ import numpy as np
 
 import rattlefit as rf
 from rattlefit.features.ensemble import ensemble_mean
-from rattlefit.inference.fit import FitOptions, _build, _evaluate
+from rattlefit.inference.forward import evaluate
+from rattlefit.inference.options import FitOptions
+from rattlefit.inference.problem import build_problem
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.simulation.synthetic import synthesize
 
@@ -54,7 +56,7 @@ def main() -> None:
         # the reference draws its release states from its own stream: with the fit's, two
         # nearly periodic ensembles would share trajectories and agree better than they should
         opts = FitOptions(seed=args.seed, n_realisations=args.realisations, **kw)
-        prob, rigs = _build([rec], opts, np.random.default_rng([args.seed, stream]))
+        prob, rigs = build_problem([rec], opts, np.random.default_rng([args.seed, stream]))
         values = {
             "a": TRUTH["a"],
             "drag_torque": TRUTH["drag_torque"],
@@ -66,7 +68,7 @@ def main() -> None:
 
     def mean_features(prob, zs, threshold):
         t = time.perf_counter()
-        f = _evaluate(prob, np.atleast_2d(zs))[:, 0]  # (K, M, B)
+        f = evaluate(prob, np.atleast_2d(zs))[:, 0]  # (K, M, B)
         print(f"  ({len(f)}×{args.realisations} simulations, {time.perf_counter() - t:.0f} s)")
         return f, np.asarray(ensemble_mean(f, threshold))
 

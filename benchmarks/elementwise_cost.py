@@ -2,13 +2,13 @@
 
 On a CPU XLA compiles ``jnp.sin``, ``jnp.cos`` and ``jnp.arctan`` to one library call per
 value, and a small batched ``einsum`` to a matrix-product library call; sums and products of a
-batch become vector instructions. Since session 30 the drive's sine and cosine and the squeeze
-film's arctangent are polynomials (:mod:`rattlefit.physics.elementary`) and the integrator's dense output
-is Horner's rule (:func:`rattlefit.simulation.lockstep._dense_output`). This times each pair in one
-process, alternating, as a loop of 20k dependent iterations over a batch of ``--rows`` values
-(the fit's 24 rows a device, and a wide batch for the throughput), and reports ns per value and
-iteration and the ratio new / library. Nothing asserts a time; pin it to one core
-(``taskset -c 0``) for steadier figures.
+batch become vector instructions. rattlefit computes the drive's sine and cosine and the
+squeeze film's arctangent as polynomials (:mod:`rattlefit.physics.elementary`) and the
+integrator's dense output by Horner's rule (:func:`rattlefit.simulation.lockstep.dense_output`).
+This times each pair in one process, alternating, as a loop of 20k dependent iterations
+over a batch of ``--rows`` values (the fit's 24 rows a device, and a wide batch for the
+throughput), and reports ns per value and iteration and the ratio new / library. Nothing
+asserts a time; pin it to one core (``taskset -c 0``) for steadier figures.
 
     python benchmarks/elementwise_cost.py                 # 24 and 240 rows, 5 repetitions
     python benchmarks/elementwise_cost.py --rows 8 24 --reps 9
@@ -35,7 +35,7 @@ def main(argv=None) -> int:
     import jax.numpy as jnp
 
     from rattlefit.physics.elementary import arctan, sin_cos_cycles
-    from rattlefit.simulation.lockstep import _dense_output
+    from rattlefit.simulation.lockstep import dense_output
 
     def weights(s):  # diffrax's factored Tsit5 interpolant, as the integrator had it
         s2 = s * s
@@ -58,7 +58,7 @@ def main(argv=None) -> int:
 
     def dense_horner(x):
         kh = [(x * (0.1 * i + 1.0))[:, None] * 1e-3 for i in range(7)]
-        y = _dense_output(jnp.zeros((x.shape[0], 1)), kh, jnp.broadcast_to(slots, (x.shape[0], 9)))
+        y = dense_output(jnp.zeros((x.shape[0], 1)), kh, jnp.broadcast_to(slots, (x.shape[0], 9)))
         return x + 1e-3 * y[:, 4, 0]
 
     pairs = {

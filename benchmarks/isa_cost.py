@@ -1,13 +1,14 @@
 """What the AVX2 cap (rattlefit.reproducibility) costs in speed, and whether it matters.
 
-rattlefit caps XLA's CPU instruction set at AVX2 on import so that a seeded result is the
-same on every x86-64 machine. On a CPU with AVX-512 that gives up the wider vectors. This
-measures the price as a ratio in one run: the same synthetic recording (pair II at 65.0 mm,
+rattlefit caps XLA's CPU instruction set at AVX2 on import so that a seeded result does not
+depend on the extensions a CPU offers beyond it; on a CPU with wider vectors the cap gives them
+up. This measures the price as a ratio in one run: the same synthetic recording (pair II at 65.0 mm,
 10 % at 8 Hz, 3 s + 0.5 s burn-in, one simulation at rtol 1e-7 by ``synthesize``) is made in
 fresh processes under each cap, alternating caps between repetitions so that both see the
 same machine load; the first call in each process compiles, the second is timed. The fit's
 workload is timed too: 16 members in one lockstep ``simulate_batch`` (rtol 1e-6). It also
-reports whether the caps give the same recording (they do not where the CPU has AVX-512).
+reports whether the caps give the same recording (they differ where the CPU offers more than
+the narrower cap).
 
     python benchmarks/isa_cost.py                 # native vs AVX2, 3 repetitions, ~1 min
     python benchmarks/isa_cost.py --caps native,AVX2,SSE4_2 --repeat 5

@@ -39,7 +39,7 @@ from rattlefit.features.spectra import spectral_features
 from rattlefit.physics.model import DEFAULT_MIN_FILM, RattleParams
 from rattlefit.simulation.reference import simulate_reference
 from rattlefit.simulation.solve import broadcast_params, simulate_batch
-from run import _operating_points, _truth_params  # benchmarks/run.py: the shared files
+from run import operating_points, truth_params  # benchmarks/run.py: the shared files
 
 #: (label, field of RattleParams, factor on the truth) for ``--variants``
 VARIANTS = (
@@ -101,8 +101,8 @@ def main() -> None:
     args = ap.parse_args()
 
     print(f"{rf.use_cpu_cores(args.devices)} JAX device(s)", flush=True)
-    [(_, setup, truth)] = _operating_points([args.recording])
-    params = _truth_params(setup, truth)
+    [(_, setup, truth)] = operating_points([args.recording])
+    params = truth_params(setup, truth)
     data = np.asarray(setup.features)
     centers = np.asarray(setup.bands.centers)
     low = int(np.sum(centers < 0.9 * setup.recording.operating.drive_frequency_hz))

@@ -81,7 +81,7 @@ def _atol(rtol: float) -> float:
     return rtol * ATOL_PER_RTOL
 
 
-def _operating_points(names):
+def operating_points(names):
     """(name, RigSetup, truth dict) of each recording, in the order given."""
     from rattlefit.inference import rig
     from rattlefit.io.recording import read_recording
@@ -90,7 +90,8 @@ def _operating_points(names):
     return [(n, rig.setup(read_recording(RECORDINGS / f"{n}.h5")), truth[n]) for n in names]
 
 
-def _truth_params(setup, truth):
+def truth_params(setup, truth):
+    """The RattleParams of a recording's truth (``truth.json``) on its rig ``setup``."""
     from rattlefit.physics.model import RattleParams
 
     return RattleParams(
@@ -163,7 +164,7 @@ def step_reference(args):
     from rattlefit.simulation.reference import simulate_reference
 
     out = {}
-    for name, s, truth in _operating_points(args["names"]):
+    for name, s, truth in operating_points(args["names"]):
         c = s.geometry.backlash / 2
         res = {}
         for label, (rtol, atol) in (("tight", REF_TOL), ("loose", REF_LOOSE_TOL)):
@@ -213,8 +214,8 @@ def step_forward(args):
     reps = args["reps"]
     compile_s = {}
     out = {}
-    for name, s, truth in _operating_points(args["names"]):
-        params = _truth_params(s, truth)
+    for name, s, truth in operating_points(args["names"]):
+        params = truth_params(s, truth)
         c = s.geometry.backlash / 2
         res = {}
         for rtol in RTOLS:
@@ -266,10 +267,10 @@ def step_paired(args):
 
     compiled = set()
     out = {}
-    for name, s, truth in _operating_points(args["names"]):
+    for name, s, truth in operating_points(args["names"]):
         rtol = args["rtol"][name]
         opts = _sim_options(s, rtol)
-        params = _truth_params(s, truth)
+        params = truth_params(s, truth)
         c = s.geometry.backlash / 2
         t_ref, t_rf = [], []
         for frac in _release_fractions(M)[: args["pairs"]]:
@@ -310,10 +311,10 @@ def step_batch(args):
 
     compiled = set()
     out = {}
-    for name, s, truth in _operating_points(args["names"]):
+    for name, s, truth in operating_points(args["names"]):
         rtol = args["rtol"][name]
         opts = _sim_options(s, rtol)
-        params = _truth_params(s, truth)
+        params = truth_params(s, truth)
         c = s.geometry.backlash / 2
         # the single simulation in this same process, as the yardstick of the batched ones
         y_single = jnp.asarray([-0.9 * c, 0.0])
@@ -418,7 +419,7 @@ def step_jacobian(args):
     forward_fn, jac_fn = _jacobian_functions()
     out = {}
     compile_s = {}
-    for name, s, truth in _operating_points(args["names"]):
+    for name, s, truth in operating_points(args["names"]):
         base = jnp.asarray(
             [
                 truth["a_mm"] * 1e-3,
@@ -519,7 +520,8 @@ def _guarded(step):
 
 def _timed_identify(file: str):
     """(recording, identify([recording], FitOptions()) result, wall time with compilation)."""
-    from rattlefit.inference.fit import FitOptions, identify
+    from rattlefit.inference.identify import identify
+    from rattlefit.inference.options import FitOptions
     from rattlefit.io.recording import read_recording
 
     rec = read_recording(RECORDINGS / file)
@@ -530,7 +532,8 @@ def _timed_identify(file: str):
 
 @_guarded
 def step_identify(args):
-    """One identification of a 3-s recording, compile included (guarded: fit.py is in flux)."""
+    """One identification of a 3-s recording, compile included (guarded: a failure is
+    reported in the results, not raised)."""
     _, result, wall = _timed_identify(args["file"])
     params = {}
     for k, v in result.parameters.items():
@@ -554,7 +557,7 @@ def step_identify(args):
 @_guarded
 def step_posterior(args):
     """identify() then sample() of the same 3-s recording: wall times, ESS, ESS per second."""
-    from rattlefit.inference.fit import FitOptions
+    from rattlefit.inference.options import FitOptions
     from rattlefit.inference.posterior import SampleOptions, sample
 
     rec, fit, t_fit = _timed_identify(args["file"])
@@ -712,9 +715,8 @@ def short(name: str) -> str:
     )
 
 
-def report(res: dict) -> str:
-    import numpy as np
-
+def report_header(res: dict) -> list[str]:
+    """The run's title, machine and simulation settings."""
     out = []
     m = res["machine"]
     out.append("rattlefit benchmarks" + (" (--quick)" if res["quick"] else ""))
@@ -732,8 +734,12 @@ def report(res: dict) -> str:
         f"ensembles of M={M} releases at s·c, s ∈ linspace(-0.9, 0.9, {M})"
     )
     out.append("")
+    return out
 
-    # 1a accuracy
+
+def report_accuracy(res: dict) -> list[str]:
+    """1a. Accuracy: each point's rms z against the sharp reference per rtol."""
+    out = []
     out.append(
         f"1a. Accuracy: rms z of ensemble-mean log band PSDs vs the sharp reference "
         f"(rtol={REF_TOL[0]:g}, atol={REF_TOL[1]:g}); matched = loosest rtol with z < {Z_MATCH:g}"
@@ -755,8 +761,14 @@ def report(res: dict) -> str:
         )
     )
     out.append("")
+    return out
 
-    # 1b speed
+
+def report_forward(res: dict) -> list[str]:
+    """1b. Forward speed: reference and rattlefit wall times and their ratios."""
+    import numpy as np
+
+    out = []
     out.append(
         "1b. Forward speed: median wall time of one 3.5-s simulation, same release states for "
         "both solvers. ratio = reference / rattlefit single steady state at the matched rtol: "
@@ -802,8 +814,12 @@ def report(res: dict) -> str:
         + ", ".join(f"rtol {float(k):g}: {v:.2f} s" for k, v in comp.items())
     )
     out.append("")
+    return out
 
-    # 1c batch
+
+def report_batch(res: dict) -> list[str]:
+    """1c. Batched forward: time per member of each batch mode and size."""
+    out = []
     out.append(
         "1c. Batched forward at the matched rtol: wall time per member (ms); "
         "single = one simulate() in the same process; 'map' splits the batch over the JAX "
@@ -839,8 +855,12 @@ def report(res: dict) -> str:
         + ", ".join(f"{k}: {_median(v):.2f} s" for k, v in compile_rows.items())
     )
     out.append("")
+    return out
 
-    # 2 jacobian
+
+def report_jacobian(res: dict) -> list[str]:
+    """2. Jacobian cost: jacfwd and the fit's FD Jacobian against one forward run."""
+    out = []
     jac = res["jacobian"]
     out.append(
         f"2. Jacobian cost at rtol={FIT_RTOL:g} (simulate's default), relative to one forward "
@@ -890,8 +910,12 @@ def report(res: dict) -> str:
         "forward function under that outer jax.jit (model, drive, y0 traced)"
     )
     out.append("")
+    return out
 
-    # 3 identify
+
+def report_identify(res: dict) -> list[str]:
+    """3. One identify() run: wall time, fit quality, estimates."""
+    out = []
     out.append(f"3. identify([{IDENTIFY_RECORDING}], FitOptions()), compile included")
     idf = res.get("identify")
     if idf is None:
@@ -907,8 +931,12 @@ def report(res: dict) -> str:
             est = "not identified" if v["estimate"] is None else f"{v['estimate']:.4g}"
             out.append(f"   {k:>16s} = {est} [{v['lower']:.3g}, {v['upper']:.3g}] {v['unit']}")
     out.append("")
+    return out
 
-    # 3b posterior
+
+def report_posterior(res: dict) -> list[str]:
+    """3b. identify() then sample(): wall times, ESS and τ per parameter."""
+    out = []
     post = res.get("posterior")
     out.append(
         f"3b. posterior: identify() then sample() of {IDENTIFY_RECORDING} (emcee, synthetic "
@@ -941,8 +969,12 @@ def report(res: dict) -> str:
             )
         out.append(table(["parameter", "median [95 %]", "τ steps", "ESS", "ESS/s"], rows))
     out.append("")
+    return out
 
-    # 3c diagnose
+
+def report_diagnose(res: dict) -> list[str]:
+    """3c. diagnose() with every effect: wall time and each effect's χ² change."""
+    out = []
     diag = res.get("diagnose")
     out.append(f"3c. diagnose of {DIAGNOSE_RECORDING}: identify, then every effect")
     if diag is None:
@@ -966,8 +998,12 @@ def report(res: dict) -> str:
         ]
         out.append(table(["effect", "χ² without → with", "p", "supported", "s"], rows))
     out.append("")
+    return out
 
-    # 4 memory
+
+def report_memory(res: dict) -> list[str]:
+    """4. Peak memory of each step's process against the baseline."""
+    out = []
     out.append("4. Peak memory (ru_maxrss of a fresh spawned process per step)")
     base = res["memory"]["baseline"]
     rows = [["baseline (import rattlefit)", f"{base:.0f}", "—"]]
@@ -976,8 +1012,13 @@ def report(res: dict) -> str:
             rows.append([step, f"{peak:.0f}", f"+{peak - base:.0f}"])
     out.append(table(["step", "peak MiB", "over baseline MiB"], rows))
     out.append("")
+    return out
 
-    # aims
+
+def report_aims(res: dict) -> list[str]:
+    """The aims, each with its measured value and verdict."""
+    out = []
+    idf, post, diag = res.get("identify"), res.get("posterior"), res.get("diagnose")
     out.append("Aims")
     ratios = {n: paired_ratio(res, n) for n in res["names"]}
     worst = min(ratios, key=ratios.get)
@@ -1047,7 +1088,24 @@ def report(res: dict) -> str:
             "the ratio there is at the rtol with the lowest z"
         )
     out.append(f"total benchmark wall time: {res['wall_s']:.0f} s")
-    return "\n".join(out)
+    return out
+
+
+def report(res: dict) -> str:
+    """The plain-text report of a run's results (``main``'s ``res``)."""
+    sections = (
+        report_header,
+        report_accuracy,
+        report_forward,
+        report_batch,
+        report_jacobian,
+        report_identify,
+        report_posterior,
+        report_diagnose,
+        report_memory,
+        report_aims,
+    )
+    return "\n".join(line for section in sections for line in section(res))
 
 
 def main(argv=None) -> int:

@@ -1,11 +1,12 @@
 """What the velocity's absolute tolerance costs in steps and in band features.
 
 The fit's simulations take their absolute tolerances per state component, ``rtol`` times the
-state's characteristic sizes (:data:`rattlefit.simulation.solve.STATE_SCALES`: 1 mm for q, 30 mm/s for
-v since session 32; 1 mm/s for both before). This script simulates M realisations (released
+state's characteristic sizes (:data:`rattlefit.simulation.solve.STATE_SCALES`: 1 mm for q,
+30 mm/s for v; :data:`~rattlefit.simulation.solve.DRY_STATE_SCALES`, 1 mm/s for v, for dry
+flanks). This script simulates M realisations (released
 across the gap, seeded) at the truth of shared recordings with the lockstep integrator, at the
 fit's rtol and several velocity scales, and compares each ensemble's mean band features with a
-tight lockstep reference (rtol 1e-7, the old scales): the rms and largest difference over the
+tight lockstep reference (rtol 1e-7, the dry scales): the rms and largest difference over the
 bands in units of their standard error (each ensemble's spread over √M, with the fit's floor
 ``sigma_floor`` per realisation, so that a periodic orbit, whose realisations agree, is judged
 at the resolution the fit has; independent chaotic ensembles give rms z about 1), and the
@@ -16,7 +17,7 @@ their mean.
     python benchmarks/state_tolerance.py                    # the three default files, M = 48
     python benchmarks/state_tolerance.py --scales 1e-3 3e-2 1e-1 --rtol-loose 1e-4
 
-Nothing asserts a number; the README's session-32 section quotes a run.
+Nothing asserts a number; benchmarks/README.md discusses the outcome.
 """
 
 from __future__ import annotations
@@ -58,16 +59,16 @@ def main(argv=None) -> int:
         broadcast_params,
         simulate_batch,
     )
-    from run import _operating_points, _truth_params  # benchmarks/run.py: the shared files
+    from run import operating_points, truth_params  # benchmarks/run.py: the shared files
 
     m = args.realisations
     print(f"seed {args.seed}, {m} realisations, fit rtol {args.rtol}", flush=True)
-    q_scale, v_old = STATE_SCALES[0], DRY_STATE_SCALES[1]  # m; m/s, the scale before session 32
+    q_scale, v_old = STATE_SCALES[0], DRY_STATE_SCALES[1]  # m; m/s, the dry velocity scale
     settings = [("reference", 1e-7, v_old)]
     settings += [(f"v {s * 1e3:g} mm/s", args.rtol, s) for s in args.scales]
     settings += [(f"rtol {r:g}, v 1 mm/s", r, v_old) for r in args.rtol_loose]
-    for name, rig, truth in _operating_points(args.names):
-        params = broadcast_params(_truth_params(rig, truth), m)
+    for name, rig, truth in operating_points(args.names):
+        params = broadcast_params(truth_params(rig, truth), m)
         c = rig.geometry.backlash / 2
         rng = np.random.default_rng(args.seed)
         y0 = jnp.asarray(np.stack([rng.uniform(-0.9 * c, 0.9 * c, m), np.zeros(m)], axis=1))

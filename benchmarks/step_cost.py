@@ -1,10 +1,10 @@
 """Cost of one lockstep step with the stiffness tables shared, against a copy per row.
 
-Every fit simulates its rows with :func:`rattlefit.simulation.solve.solve_rows`, 24 rows a device. Each
-row's model used to carry its own copy of the mesh-stiffness table (64 KB for the mild shared
-file's pair, so 1.5 MB for 24 rows), and the table is read at every vector-field call: the
-copies do not stay in cache. Since session 29 the rows read their table out of one shared
-stack (:func:`rattlefit.physics.model.share_stiffness_tables`). This script times both layouts in one
+Every fit simulates its rows with :func:`rattlefit.simulation.solve.solve_rows`, 24 rows a
+device, and the mesh-stiffness table is read at every vector-field call. With a copy of the
+table per row (64 KB for the mild shared file's pair, so 1.5 MB for 24 rows) the copies do not
+stay in cache; the fit's rows therefore read their table out of one shared stack
+(:func:`rattlefit.physics.model.share_stiffness_tables`). This script times both layouts in one
 process, alternating them, on the mild shared file's operating point at its truth (rows
 released across the gap, 3.5 s at rtol 1e-5 as the fit runs them), and reports µs per step
 (per iteration of the lockstep loop, i.e. per step of the row that takes most) and their
@@ -40,10 +40,10 @@ def main(argv=None) -> int:
 
     from rattlefit.physics.model import share_stiffness_tables
     from rattlefit.simulation.solve import broadcast_params, solve_rows
-    from run import _operating_points, _truth_params  # benchmarks/run.py: the shared files
+    from run import operating_points, truth_params  # benchmarks/run.py: the shared files
 
-    [(_, setup, truth)] = _operating_points([NAME])
-    params = _truth_params(setup, truth)
+    [(_, setup, truth)] = operating_points([NAME])
+    params = truth_params(setup, truth)
     opts = dict(
         n_samples=30_000,
         sample_rate=setup.sample_rate,

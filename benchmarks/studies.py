@@ -4,11 +4,10 @@ their JSON reports written whole."""
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 
-from rattlefit.inference.fit import FitOptions
+from rattlefit.inference.options import FLAT_FIELDS
 
 
 def add_set_argument(ap: argparse.ArgumentParser) -> None:
@@ -22,15 +21,17 @@ def add_set_argument(ap: argparse.ArgumentParser) -> None:
 
 
 def set_overrides(ap: argparse.ArgumentParser, items: list[str]) -> dict:
-    """The ``FitOptions`` fields named by ``--set`` items, their values read as JSON; a bad
-    item ends the script through ``ap.error``."""
-    fields = {f.name for f in dataclasses.fields(FitOptions)}
+    """The ``FitOptions`` options named by ``--set`` items (flat names,
+    :data:`~rattlefit.inference.options.FLAT_FIELDS`), their values read as JSON; a bad item
+    ends the script through ``ap.error``."""
+    fields = set(FLAT_FIELDS) - {"priors"}
     overrides = {}
     for item in items:
         name, sep, value = item.partition("=")
         if not sep or name not in fields or name == "seed":
             ap.error(
-                f"--set {item!r}: expected FIELD=JSON with FIELD a FitOptions field other than seed"
+                f"--set {item!r}: expected FIELD=JSON with FIELD a FitOptions option other "
+                "than seed"
             )
         try:
             overrides[name] = json.loads(value)

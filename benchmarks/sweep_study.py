@@ -3,20 +3,19 @@
 Issue 3 asks that a joint fit of a backlash sweep (one gear pair, one lubrication, several
 centre distances: the paper's Figs. 10–12) tighten the intervals compared with the single
 recordings. One sweep answers that for one realisation only: rattle is chaotic, the cost is
-rough at the scale of a few per cent of a parameter, and which way one comparison falls has
-changed with every change of realisation (tests/test_fit.py's sweep: benchmarks/README, "The
-joint sweep's tightening over many sweeps"). This script asks it of many: for each of
-``--sweeps`` seeded sweeps (`rattlefit.simulation.synthetic.backlash_sweep`, pair II in boundary
-lubrication, 10 % at 8 Hz by default; every recording with its own seed, printed), it
-identifies each recording alone and all of them jointly with the default `FitOptions`
-(fit seed: the sweep's), and reports for the shared parameters (`a`, `drag_torque`,
-`viscosity`) each interval's width in log, whether the joint one is narrower than the
-narrowest single one, and whether each holds the truth. Beside each comparison it prints the
-singles' widths pooled (`pooled_width`: the width the joint interval would have if each
-recording's profile were a parabola and their information simply added), which says how much
-a joint fit should gain, roughly: little where one recording carries most of the information
-(rough profiles, cliffs and rival candidates make the singles wider than a parabola, so a joint
-fit can beat it).
+rough at the scale of a few per cent of a parameter, and which way one comparison falls
+changes with the realisation (benchmarks/README, "The joint sweep's tightening over many
+sweeps"). This script asks it of many: for each of ``--sweeps`` seeded sweeps
+(`rattlefit.simulation.synthetic.backlash_sweep`, pair II in boundary lubrication, 10 % at
+8 Hz by default; every recording with its own seed, printed), it identifies each recording
+alone and all of them jointly with the default `FitOptions` (fit seed: the sweep's), and
+reports for the shared parameters (`a`, `drag_torque`, `viscosity`) each interval's width in
+log, whether the joint one is narrower than the narrowest single one, and whether each holds
+the truth. Beside each comparison it prints the singles' widths pooled (`pooled_width`: the
+width the joint interval would have if each recording's profile were a parabola and their
+information simply added), which says how much a joint fit should gain, roughly: little where
+one recording carries most of the information (rough profiles, cliffs and rival candidates
+make the singles wider than a parabola, so a joint fit can beat it).
 
     python benchmarks/sweep_study.py [--sweeps 6] [--seed 0] [--center-distances 65.0 65.4]
                                      [--only K ...] [--refits R] [--json out.json] [--quiet]
@@ -27,9 +26,8 @@ sweep's own), the recordings unchanged: how much of a comparison is the fit's ow
 (release states, starts, dither), not the data. It prints each interval's width over the fits,
 their mean and spread (inf and nan where one reaches zero).
 
-Each sweep costs its singles and the joint fit. Measured in session 34 (2 cores): 151–338 s a
-sweep at 65.4 + 66.0 mm, 384–510 s at 65.0 + 65.4 mm and 399–587 s for three distances, the
-last two beside other jobs.
+Each sweep costs its singles and the joint fit: several minutes a sweep on 2 cores, more for
+the smaller centre distances (stronger rattle) and for three distances.
 """
 
 from __future__ import annotations
@@ -40,9 +38,10 @@ import time
 import numpy as np
 
 import rattlefit as rf
-from _study import add_set_argument, set_overrides, write_json
-from rattlefit.inference.fit import FitOptions, identify
+from rattlefit.inference.identify import identify
+from rattlefit.inference.options import FitOptions
 from rattlefit.simulation.synthetic import backlash_sweep
+from studies import add_set_argument, set_overrides, write_json
 
 SHARED = ("a", "drag_torque", "viscosity")
 
