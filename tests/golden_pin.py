@@ -61,10 +61,15 @@ def strip(doc):
 
 def compute() -> dict:
     """The pinned documents, keyed by pipeline."""
-    from rattlefit.diagnose import DiagnoseOptions, diagnose
-    from rattlefit.fit import FitOptions, identify
-    from rattlefit.recording import read_recording
-    from rattlefit.sample import SampleOptions, sample
+    from rattlefit import (
+        DiagnoseOptions,
+        FitOptions,
+        SampleOptions,
+        diagnose,
+        identify,
+        read_recording,
+        sample,
+    )
 
     out = {}
     first = None

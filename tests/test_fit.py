@@ -528,8 +528,8 @@ def test_starts_can_be_ranked_by_their_realisation_nearest_the_recording(mild_re
     # Two starts screened with two realisations each. Start 0 has one realisation on the
     # recording and one in another regime far from it; start 1 has both a little off it.
     # Their means rank start 1 first; ranked by the realisation nearest the recording
-    # (FitOptions.screen "nearest"), start 0 is the one whose neighbourhood can reproduce the
-    # recording, and ranks first.
+    # (ExperimentalOptions.start_screen "nearest"), start 0 is the one whose neighbourhood can
+    # reproduce the recording, and ranks first.
     problem = _problem([mild_recording[0]])
     data = np.asarray(problem.data)
     problem = eqx.tree_at(lambda q: q.sigma, problem, jnp.full(data.shape, 0.1))
@@ -545,7 +545,7 @@ def test_starts_can_be_ranked_by_their_realisation_nearest_the_recording(mild_re
     assert costs["nearest"][0] == pytest.approx(data.shape[1] * 0.01**2)
     assert costs["mean"][1] < costs["mean"][0]
     assert costs["mean"][0] == pytest.approx(data.shape[1] * 1.005**2)
-    with pytest.raises(rf.RattlefitError, match="screen must be 'mean' or 'nearest'"):
+    with pytest.raises(rf.RattlefitError, match=r"FitOptions\.screen must be one of 'mean'"):
         FitOptions(screen="best")
 
 

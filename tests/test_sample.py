@@ -20,12 +20,12 @@ from rattlefit.errors import RattlefitError
 from rattlefit.inference.noise import NoiseModel
 from rattlefit.inference.parameters import ParameterSpec
 from rattlefit.inference.posterior import (
+    ChainContext,
     LogPosterior,
     Posterior,
     SampleOptions,
-    _Context,
-    _write_context,
     run_chain,
+    write_context,
 )
 from rattlefit.inference.problem import build_problem
 from rattlefit.io.recording import OperatingPoint
@@ -199,7 +199,7 @@ def small_recording():
 def test_a_chain_file_of_other_recordings_is_refused(tmp_path, small_recording):
     path = tmp_path / "chain.h5"
     n_band = 30
-    ctx = _Context(
+    ctx = ChainContext(
         FitOptions(),
         np.zeros(6),
         np.eye(6),
@@ -208,7 +208,7 @@ def test_a_chain_file_of_other_recordings_is_refused(tmp_path, small_recording):
         ["elsewhere.h5"],
         0,
     )
-    _write_context(path, ctx)
+    write_context(path, ctx)
     with pytest.raises(RattlefitError, match=r"chain\.h5: /rattlefit/data: .*elsewhere\.h5"):
         sample([small_recording], backend=path)
 

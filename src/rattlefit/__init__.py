@@ -20,7 +20,17 @@ import jax  # noqa: E402
 jax.config.update("jax_enable_x64", True)
 
 from .compile_cache import use_compilation_cache  # noqa: E402
+from .diagnosis import DiagnoseOptions, Diagnosis, diagnose  # noqa: E402
 from .errors import ParameterError, RattlefitError, RecordingError, SolverError  # noqa: E402
+from .inference import (  # noqa: E402
+    FitOptions,
+    FitResult,
+    Posterior,
+    SampleOptions,
+    identify,
+    sample,
+)
+from .io.recording import Recording, read_recording, write_recording  # noqa: E402
 from .physics.drive import Drive  # noqa: E402
 from .physics.geometry import GearGeometry, table2_pair  # noqa: E402
 from .physics.model import Effect, RattleModel, RattleParams, Smoothing  # noqa: E402
@@ -28,26 +38,40 @@ from .physics.oil import dynamic_viscosity  # noqa: E402
 from .reproducibility import platform_info  # noqa: E402
 from .simulation.parallel import use_cpu_cores  # noqa: E402
 from .simulation.solve import Solution, simulate, simulate_batch  # noqa: E402
+from .simulation.synthetic import synthesize  # noqa: E402
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "DiagnoseOptions",
+    "Diagnosis",
     "Drive",
     "Effect",
+    "FitOptions",
+    "FitResult",
     "GearGeometry",
     "ParameterError",
+    "Posterior",
     "RattleModel",
     "RattleParams",
     "RattlefitError",
+    "Recording",
     "RecordingError",
+    "SampleOptions",
     "Smoothing",
     "Solution",
     "SolverError",
+    "diagnose",
     "dynamic_viscosity",
+    "identify",
     "platform_info",
+    "read_recording",
+    "sample",
     "simulate",
     "simulate_batch",
+    "synthesize",
     "table2_pair",
     "use_compilation_cache",
     "use_cpu_cores",
+    "write_recording",
 ]

@@ -302,8 +302,8 @@ def identify(
 ) -> None:
     """Fit a, T_b and the viscosity to one recording, or jointly to several of one pair
     (e.g. a backlash sweep; under several lubrications each gets its own a[LUBRICATION])."""
-    from .inference.fit import FitOptions
-    from .inference.fit import identify as run
+    from .inference.identify import identify as run
+    from .inference.options import FitOptions
     from .io.recording import read_recording
     from .report import format_table, plot_fit
 
@@ -334,7 +334,10 @@ def identify(
 @click.option("--steps", type=click.IntRange(min=2), default=300, show_default=True)
 @click.option("--walkers", type=click.IntRange(min=2), default=16, show_default=True)
 @click.option(
-    "--burn-in", type=click.IntRange(min=0), default=None, help="[default: a third of --steps]"
+    "--discard",
+    type=click.IntRange(min=0),
+    default=None,
+    help="Steps discarded as the chain's warm-up (burn-in) [default: a third of --steps].",
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="Seeds the fit and chain.")
 @click.option("--quick-fit", is_flag=True, help="Start from a FitOptions.quick() fit.")
@@ -345,22 +348,22 @@ def identify(
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
 @_clean_errors
 def sample(
-    files, backend, steps, walkers, burn_in, seed, quick_fit, output, plot_dir, priors, quiet
+    files, backend, steps, walkers, discard, seed, quick_fit, output, plot_dir, priors, quiet
 ):
     """Sample the Bayesian posterior of a, T_b, the viscosity and the nuisances (emcee),
     starting from an identification of the same files."""
-    from .inference.fit import FitOptions
+    from .inference.options import FitOptions
     from .inference.posterior import SampleOptions
     from .inference.posterior import sample as run
     from .io.recording import read_recording
     from .report import format_posterior, plot_posterior
 
-    if burn_in is not None and burn_in >= steps:
-        raise click.BadParameter(f"must be below --steps ({steps})", param_hint="--burn-in")
+    if discard is not None and discard >= steps:
+        raise click.BadParameter(f"must be below --steps ({steps})", param_hint="--discard")
     recordings = [read_recording(f) for f in files]
     fit_options = (FitOptions.quick if quick_fit else FitOptions)(seed=seed, priors=_priors(priors))
     options = SampleOptions(
-        n_walkers=walkers, n_steps=steps, burn_in=burn_in, seed=seed, fit=fit_options
+        n_walkers=walkers, n_steps=steps, discard=discard, seed=seed, fit=fit_options
     )
     post = run(recordings, None, options, backend=backend, progress=_progress(quiet))
     _emit(
@@ -397,7 +400,7 @@ def diagnose(files, effects, seed, quick_fit, iterations, output, plot_dir, prio
     much of the misfit it removes (each effect fitted on top of an identification)."""
     from .diagnosis.diagnose import DiagnoseOptions
     from .diagnosis.diagnose import diagnose as run
-    from .inference.fit import FitOptions
+    from .inference.options import FitOptions
     from .io.recording import read_recording
     from .physics.effects import EFFECTS
     from .report import format_diagnosis, plot_diagnosis

@@ -8,11 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .diagnosis.diagnose import MISSED_Z, Diagnosis
+from .diagnosis.result import MISSED_Z, Diagnosis
 from .features.spectra import welch_psd
-from .inference.fit import IDENTIFIED_RATIO, FitResult
 from .inference.posterior import Posterior
 from .inference.profile import CHI2_1_95
+from .inference.result import IDENTIFIED_RATIO, FitResult
 from .inference.rig import setup
 from .io.recording import Recording
 from .simulation.solve import absolute_tolerances, simulate
@@ -239,7 +239,7 @@ def format_posterior(post: Posterior) -> str:
     lines.insert(1, "  ".join("-" * w for w in widths))
     steps, walkers = post.chain.shape[:2]
     lines.append(
-        f"{walkers} walkers × {steps} steps (first {post.burn_in} discarded); acceptance "
+        f"{walkers} walkers × {steps} steps (first {post.discard} discarded); acceptance "
         f"{np.mean(post.acceptance):.2f}; {post.n_evaluations} points simulated; seed "
         f"{post.seed}; {post.wall_time:.1f} s"
     )
@@ -262,7 +262,7 @@ def plot_posterior(
     fig, axes = _pyplot().subplots(p, 1, figsize=(9, 1.6 * p), sharex=True, squeeze=False)
     for i, ax in enumerate(axes[:, 0]):
         ax.plot(post.chain[:, :, i] * scale[i][0], color="k", lw=0.4, alpha=0.35)
-        ax.axvspan(0, post.burn_in, color="0.85", lw=0)
+        ax.axvspan(0, post.discard, color="0.85", lw=0)
         ax.set_ylabel(f"{names[i]}\n({scale[i][1]})" if scale[i][1] else names[i], fontsize=8)
     axes[-1, 0].set_xlabel("step (shaded: burn-in, discarded)")
     out = [_save(fig, directory / "posterior_trace.png")]

@@ -1,1 +1,41 @@
-"""inference."""
+"""Inference: from recordings to parameters with honest uncertainty.
+
+- :mod:`.parameters`: the fitted parameters, their coordinates and priors;
+- :mod:`.rig`: a recording turned into the model's inputs;
+- :mod:`.options`: :class:`FitOptions`, in groups;
+- :mod:`.problem`: the problem and its seeded realisations; :mod:`.forward`: the feature map;
+- :mod:`.noise`: the noise model (a synthetic likelihood from the simulated ensemble);
+- :mod:`.starts` and :mod:`.least_squares`: the search (Levenberg–Marquardt from many starts);
+- :mod:`.laplace`: the covariance at the optimum; :mod:`.profile`: the profile intervals;
+- :mod:`.result`: estimates and :class:`FitResult`; :mod:`.identify`: the orchestration;
+- :mod:`.posterior`: the Bayesian posterior by emcee, with a resumable HDF5 chain.
+"""
+
+from .identify import identify
+from .noise import NoiseModel
+from .options import (
+    EnsembleOptions,
+    ExperimentalOptions,
+    FitOptions,
+    NoiseOptions,
+    ProfileOptions,
+    SearchOptions,
+)
+from .posterior import Posterior, SampleOptions, sample
+from .result import FitResult, ParameterEstimate
+
+__all__ = [
+    "EnsembleOptions",
+    "ExperimentalOptions",
+    "FitOptions",
+    "FitResult",
+    "NoiseModel",
+    "NoiseOptions",
+    "ParameterEstimate",
+    "Posterior",
+    "ProfileOptions",
+    "SampleOptions",
+    "SearchOptions",
+    "identify",
+    "sample",
+]

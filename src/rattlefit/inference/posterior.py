@@ -10,8 +10,9 @@ The target is the posterior density in the fit's unconstrained coordinates ``z``
   deterministic function of ``z``. This is a Gaussian synthetic likelihood (Wood 2010; Price
   et al. 2018) whose band spread ``σ`` (which holds the Monte Carlo variance of an
   M-realisation mean), band correlations ``W`` and per-recording χ² inflation are those of the
-  fit at its optimum (:class:`~rattlefit.inference.fit.NoiseModel`). Re-estimating them at every point
-  would make the target itself noisy, and a noisy target makes ensemble MCMC sticky.
+  fit at its optimum (:class:`~rattlefit.inference.noise.NoiseModel`). Re-estimating them at
+  every point would make the target itself noisy, and a noisy target makes ensemble MCMC
+  sticky.
 * priors ``π``: log-uniform over the range for the free parameters (``a``, ``drag_torque``);
   log-normal (``center``, ``log_sd``) truncated to the range for the nuisance parameters
   (viscosity factor, stiffness scale, ``h_min``, each backlash). The chain moves in ``z``, and
@@ -31,6 +32,7 @@ restored, so an interrupted and resumed chain equals an uninterrupted one.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 import time
@@ -44,8 +46,13 @@ import numpy as np
 from ..errors import RattlefitError
 from ..io.recording import Recording
 from ..reproducibility import platform_info
-from .fit import FitOptions, FitResult, NoiseModel, _build, _evaluate, identify
+from .forward import evaluate
+from .identify import identify
+from .noise import NoiseModel
+from .options import FitOptions
 from .parameters import ParameterSpec
+from .problem import problem_from
+from .result import FitResult
 
 #: Walkers beyond this |z| have a value within e^-20 of its range's end: zero density there.
 Z_LIMIT = 20.0
@@ -59,7 +66,8 @@ class SampleOptions:
 
     n_walkers : emcee walkers (at least twice the number of parameters; rounded up to even).
     n_steps : total length of the chain; a resumed chain is continued to this length.
-    burn_in : steps discarded before the summaries; default a third of the chain.
+    discard : steps discarded as the chain's warm-up (burn-in) before the summaries, as
+        emcee's ``discard``; None (default): a third of the chain.
     seed : seeds the walkers' start and emcee's moves (reported in the result).
     init_scale : the walkers start at the fit's optimum plus this fraction of a draw from its
         Laplace covariance (each coordinate's offset clipped to ±2 in z).
@@ -69,7 +77,7 @@ class SampleOptions:
 
     n_walkers: int = 16
     n_steps: int = 300
-    burn_in: int | None = None
+    discard: int | None = None
     seed: int = 0
     init_scale: float = 0.5
     fit: FitOptions = dataclasses.field(default_factory=FitOptions)
@@ -77,8 +85,10 @@ class SampleOptions:
     def __post_init__(self):
         if self.n_steps < 2:
             raise RattlefitError("SampleOptions.n_steps must be at least 2")
-        if self.burn_in is not None and not (0 <= self.burn_in < self.n_steps):
-            raise RattlefitError("SampleOptions.burn_in must lie in [0, n_steps)")
+        if self.n_walkers < 2:
+            raise RattlefitError("SampleOptions.n_walkers must be at least 2")
+        if self.discard is not None and not (0 <= self.discard < self.n_steps):
+            raise RattlefitError("SampleOptions.discard must lie in [0, n_steps)")
 
 
 def log_prior(specs: Sequence[ParameterSpec], zs) -> np.ndarray:
@@ -156,7 +166,7 @@ class Posterior:
     autocorr_time: np.ndarray
     ess: np.ndarray
     reliable: bool
-    burn_in: int
+    discard: int
     seed: int
     wall_time: float
     n_evaluations: int
@@ -166,11 +176,14 @@ class Posterior:
     chain_z: np.ndarray | None = dataclasses.field(default=None, repr=False)
     #: the options of the fit whose realisations and noise model define the target
     fit_options: FitOptions | None = dataclasses.field(default=None, repr=False)
+    #: what a seeded result depends on (:func:`~rattlefit.reproducibility.platform_info`),
+    #: captured when the chain ran
+    platform: dict = dataclasses.field(default_factory=dict, compare=False)
 
     @property
     def kept(self) -> np.ndarray:
         """Draws after the burn-in, flattened over walkers: (n, P)."""
-        return self.chain[self.burn_in :].reshape(-1, self.chain.shape[-1])
+        return self.chain[self.discard :].reshape(-1, self.chain.shape[-1])
 
     def predictive_features(self, recordings: Sequence[Recording], n_draws: int = 8, seed=0):
         """Mean simulated features at ``n_draws`` seeded draws of the kept chain, with the
@@ -179,12 +192,10 @@ class Posterior:
         statistic the likelihood compares)."""
         if self.chain_z is None or self.fit_options is None:
             raise RattlefitError("posterior: no chain in fit coordinates to draw from")
-        problem, _ = _build(
-            recordings, self.fit_options, np.random.default_rng(self.fit_options.seed)
-        )
-        kept = self.chain_z[self.burn_in :].reshape(-1, self.chain_z.shape[-1])
+        problem, _, _ = problem_from(recordings, self.fit_options)
+        kept = self.chain_z[self.discard :].reshape(-1, self.chain_z.shape[-1])
         pick = np.random.default_rng(seed).choice(len(kept), size=n_draws, replace=False)
-        draws = np.asarray(problem.mean_of(_evaluate(problem, kept[pick])))
+        draws = np.asarray(problem.mean_of(evaluate(problem, kept[pick])))
         return draws, np.asarray(problem.data), problem.bands.centers
 
     def intervals(self, level: float = 0.95) -> dict[str, tuple[float, float, float]]:
@@ -200,10 +211,10 @@ class Posterior:
         """An ``arviz.InferenceData`` (walkers as chains, kept draws only)."""
         import arviz as az
 
-        kept = np.swapaxes(self.chain[self.burn_in :], 0, 1)  # (walker, draw, P)
+        kept = np.swapaxes(self.chain[self.discard :], 0, 1)  # (walker, draw, P)
         return az.from_dict(
             posterior={n: kept[..., i] for i, n in enumerate(self.names)},
-            sample_stats={"lp": np.swapaxes(self.log_prob[self.burn_in :], 0, 1)},
+            sample_stats={"lp": np.swapaxes(self.log_prob[self.discard :], 0, 1)},
         )
 
     def to_json(self) -> dict:
@@ -216,13 +227,13 @@ class Posterior:
             "sampler": {
                 "walkers": int(self.chain.shape[1]),
                 "steps": int(self.chain.shape[0]),
-                "burn_in": self.burn_in,
+                "discard": self.discard,
                 "acceptance_mean": float(np.mean(self.acceptance)),
                 "autocorr_time": dict(zip(self.names, map(float, self.autocorr_time), strict=True)),
                 "ess": dict(zip(self.names, map(float, self.ess), strict=True)),
                 "reliable": self.reliable,
                 "seed": self.seed,
-                "platform": platform_info(),  # seeded results depend on it
+                "platform": self.platform,  # seeded results depend on it
                 "wall_time_s": self.wall_time,
                 "evaluations": self.n_evaluations,
                 "recordings": self.recordings,
@@ -235,19 +246,15 @@ class Posterior:
 
 
 def _options_json(options: FitOptions) -> str:
-    d = dataclasses.asdict(options)
-    d["priors"] = {k: dataclasses.asdict(v) for k, v in options.priors.items()}
-    return json.dumps(d)
+    return json.dumps(options.to_dict())
 
 
 def _options_from_json(text: str) -> FitOptions:
-    d = json.loads(text)
-    d["priors"] = {k: ParameterSpec(**v) for k, v in d["priors"].items()}
-    return FitOptions(**d)
+    return FitOptions.from_dict(json.loads(text))
 
 
 @dataclasses.dataclass(frozen=True)
-class _Context:
+class ChainContext:
     """What a chain needs besides the recordings: stored in the chain file's ``rattlefit``."""
 
     fit_options: FitOptions
@@ -259,7 +266,8 @@ class _Context:
     seed: int
 
 
-def _write_context(path: Path, ctx: _Context) -> None:
+def write_context(path: Path, ctx: ChainContext) -> None:
+    """Store ``ctx`` in the group ``rattlefit`` of the chain file ``path`` (replacing any)."""
     with h5py.File(path, "a") as f:
         if "rattlefit" in f:
             del f["rattlefit"]
@@ -282,8 +290,10 @@ def _write_context(path: Path, ctx: _Context) -> None:
             g.create_dataset(name, data=np.asarray(value, dtype=float))
 
 
-def _read_context(path: Path) -> _Context | None:
-    """The stored context, None for a new (absent or empty) file, or a clear error."""
+def read_context(path: Path) -> ChainContext | None:
+    """The context stored in the chain file ``path``; None for a new (absent or empty) file.
+    Raises :class:`~rattlefit.errors.RattlefitError` naming the file and group for a file
+    that is not a rattlefit chain, of another format version, or unreadable."""
     if not path.exists() or path.stat().st_size == 0:
         return None
     try:
@@ -309,7 +319,7 @@ def _read_context(path: Path) -> _Context | None:
                 arr["chi2_recordings"],
                 int(g.attrs["sigma_dof"]),
             )
-            return _Context(
+            return ChainContext(
                 _options_from_json(g.attrs["fit_options"]),
                 arr["z"],
                 arr["covariance_z"],
@@ -327,7 +337,7 @@ def _read_context(path: Path) -> _Context | None:
 # -- sampling -------------------------------------------------------------------------------
 
 
-def _summarise(sampler, specs, viscosity, burn_in):
+def _summarise(sampler, specs, viscosity, discard):
     """(chain in SI values, names, units, τ, reliable) of the sampler's stored chain."""
     z = sampler.get_chain()
     values = np.empty_like(z)
@@ -341,8 +351,8 @@ def _summarise(sampler, specs, viscosity, burn_in):
         else:
             names.append(s.name)
             units.append(s.unit)
-    kept = z.shape[0] - burn_in
-    tau = np.asarray(sampler.get_autocorr_time(discard=burn_in, tol=0, quiet=True))
+    kept = z.shape[0] - discard
+    tau = np.asarray(sampler.get_autocorr_time(discard=discard, tol=0, quiet=True))
     # an integrated autocorrelation time below one step is an artefact of a short chain
     tau = np.where(np.isfinite(tau), np.maximum(tau, 1.0), float(kept))
     return values, names, units, tau, bool(kept >= 50 * np.max(tau))
@@ -351,11 +361,10 @@ def _summarise(sampler, specs, viscosity, burn_in):
 def _moves():
     """Differential-evolution proposals (70 %) mixed with stretch moves (30 %).
 
-    Measured on a correlated 6-parameter Gaussian with 16 walkers: integrated autocorrelation
-    time 25 steps, against 70 for emcee's default stretch move alone (2.8× the effective
-    samples per simulation). The DE-with-snooker mix that emcee's documentation shows was as
-    fast but drew variances 4–8 % too small there, and 11 % too small in
-    ``tests/test_sample.py``'s closed-form check.
+    On a correlated 6-parameter Gaussian with 16 walkers this mix's integrated
+    autocorrelation time is about a third of emcee's default stretch move's; the
+    DE-with-snooker mix is as fast but draws variances that are too small
+    (``tests/test_sample.py`` checks the variances against the closed form).
     """
     return [(emcee.moves.DEMove(), 0.7), (emcee.moves.StretchMove(), 0.3)]
 
@@ -418,6 +427,48 @@ def run_chain(
     return sampler
 
 
+def _context_of(fit: FitResult, recordings: Sequence[Recording], seed: int) -> ChainContext:
+    """A new chain's context from the fit it starts at."""
+    if fit.noise is None:
+        raise RattlefitError("sample: the fit result carries no noise model (run identify)")
+    return ChainContext(
+        fit.options,
+        np.asarray(fit.z),
+        np.asarray(fit.covariance_z),
+        np.stack(fit.measured_features),
+        fit.noise,
+        [str(r.path) for r in recordings],
+        seed,
+    )
+
+
+def _target(recordings: Sequence[Recording], ctx: ChainContext, path: Path | None):
+    """The fit's problem rebuilt from ``recordings`` and the chain's :class:`LogPosterior`;
+    raises when the recordings are not the chain's."""
+    problem, _, _ = problem_from(recordings, ctx.fit_options)
+    data = np.asarray(problem.data)
+    if data.shape != ctx.data.shape or not np.allclose(data, ctx.data, rtol=0, atol=1e-9):
+        raise RattlefitError(
+            f"{path}: /rattlefit/data: this chain was run on other recordings "
+            f"({', '.join(ctx.recordings)}); give those, or a new --backend file"
+        )
+    mean_features = functools.partial(_mean_features, problem)
+    return problem, LogPosterior(problem.specs, data, ctx.noise, mean_features)
+
+
+def _mean_features(problem, zs) -> np.ndarray:
+    return np.asarray(problem.mean_of(evaluate(problem, zs)))
+
+
+def _chain_backend(path: Path, ctx: ChainContext, resumed: bool) -> emcee.backends.HDFBackend:
+    """emcee's HDF5 backend on ``path``; a new chain's file is started with its context."""
+    if not resumed:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.unlink(missing_ok=True)
+        write_context(path, ctx)
+    return emcee.backends.HDFBackend(str(path), name="mcmc")
+
+
 def sample(
     recordings: Sequence[Recording],
     fit: FitResult | None = None,
@@ -428,56 +479,31 @@ def sample(
 ) -> Posterior:
     """Sample the posterior of ``a``, ``drag_torque``, the viscosity and the nuisances.
 
-    ``fit`` is :func:`~rattlefit.inference.fit.identify`'s result on the same recordings (run here with
-    ``options.fit`` when not given); its optimum and Laplace covariance start the walkers and
-    its noise model weights the bands. With ``backend`` (an HDF5 path) the chain is saved as it
-    runs; if that file already holds a chain of these recordings, it is continued to
-    ``options.n_steps`` and ``fit`` is not needed.
+    ``fit`` is :func:`~rattlefit.inference.identify.identify`'s result on the same recordings
+    (run here with ``options.fit`` when not given); its optimum and Laplace covariance start
+    the walkers and its noise model weights the bands. With ``backend`` (an HDF5 path) the
+    chain is saved as it runs; if that file already holds a chain of these recordings, it is
+    continued to ``options.n_steps`` and ``fit`` is not needed. Raises
+    :class:`~rattlefit.errors.RattlefitError` for a backend file that is not a rattlefit chain
+    or holds a chain of other recordings.
     """
     options = options or SampleOptions()
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
+    platform = platform_info()
     path = None if backend is None else Path(backend)
-    ctx = None if path is None else _read_context(path)
-    if ctx is None:
+    ctx = None if path is None else read_context(path)
+    resumed = ctx is not None
+    if resumed:
+        say(f"continuing the chain in {path}")
+    else:
         if fit is None:
             say("no fit given: identifying first …")
             fit = identify(recordings, options.fit, progress=progress)
-        if fit.noise is None:
-            raise RattlefitError("sample: the fit result carries no noise model (run identify)")
-        ctx = _Context(
-            fit.options,
-            np.asarray(fit.z),
-            np.asarray(fit.covariance_z),
-            np.stack(fit.measured_features),
-            fit.noise,
-            [str(r.path) for r in recordings],
-            options.seed,
-        )
-        resumed = False
-    else:
-        resumed = True
-        say(f"continuing the chain in {path}")
-
-    problem, _ = _build(recordings, ctx.fit_options, np.random.default_rng(ctx.fit_options.seed))
-    data = np.asarray(problem.data)
-    if data.shape != ctx.data.shape or not np.allclose(data, ctx.data, rtol=0, atol=1e-9):
-        raise RattlefitError(
-            f"{path}: /rattlefit/data: this chain was run on other recordings "
-            f"({', '.join(ctx.recordings)}); give those, or a new --backend file"
-        )
+        ctx = _context_of(fit, recordings, options.seed)
+    problem, target = _target(recordings, ctx, path)
     specs = problem.specs
-    target = LogPosterior(
-        specs, data, ctx.noise, lambda zs: np.asarray(problem.mean_of(_evaluate(problem, zs)))
-    )
-
-    hdf = None
-    if path is not None:
-        if not resumed:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.unlink(missing_ok=True)
-            _write_context(path, ctx)
-        hdf = emcee.backends.HDFBackend(str(path), name="mcmc")
+    hdf = None if path is None else _chain_backend(path, ctx, resumed)
     say(f"{ctx.fit_options.n_realisations} simulated realisations per point")
     sampler = run_chain(
         target,
@@ -491,12 +517,12 @@ def sample(
         progress=say,
     )
     n_walkers = sampler.nwalkers
-    burn_in = options.n_steps // 3 if options.burn_in is None else options.burn_in
-    burn_in = min(burn_in, sampler.iteration - 2)
+    discard = options.n_steps // 3 if options.discard is None else options.discard
+    discard = min(discard, sampler.iteration - 2)
     values, names, units, tau, reliable = _summarise(
-        sampler, specs, float(problem.viscosities[0]), burn_in
+        sampler, specs, float(problem.viscosities[0]), discard
     )
-    kept = sampler.iteration - burn_in
+    kept = sampler.iteration - discard
     wall = time.perf_counter() - t0
     ess = n_walkers * kept / tau
     say(
@@ -512,7 +538,7 @@ def sample(
         autocorr_time=tau,
         ess=ess,
         reliable=reliable,
-        burn_in=burn_in,
+        discard=discard,
         seed=ctx.seed,
         wall_time=wall,
         n_evaluations=target.n_evaluations,
@@ -520,4 +546,5 @@ def sample(
         backend=None if path is None else str(path),
         chain_z=sampler.get_chain(),
         fit_options=ctx.fit_options,
+        platform=platform,
     )

@@ -1,7 +1,7 @@
 """Profile-likelihood intervals of a simulated, noisy cost.
 
-:func:`~rattlefit.inference.fit.identify` reports each free parameter's 95 % interval from its cost
-profile: the cost with the parameter held at a value and the others re-optimised, against a
+:func:`~rattlefit.inference.identify.identify` reports each free parameter's 95 % interval from
+its cost profile: the cost with the parameter held at a value and the others re-optimised, against a
 threshold (:func:`profile_threshold`: χ²₁'s 95 % quantile plus an allowance for the Monte
 Carlo noise and chaotic roughness of a difference of two costs). The cost is a synthetic
 likelihood of simulated realisations, so every evaluation is a batch of simulations, and
@@ -29,7 +29,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from .parameters import Z_END
+from ..parameters import Z_END
 
 #: More guesses for the other parameters at a profile value: ``valley(i, near, t)`` returns
 #: points with parameter i at t where the model's physics puts the valley of the cost that
@@ -78,8 +78,7 @@ def profile_threshold(noise_sd: float, jitter_costs: np.ndarray | None = None) -
     * several rows, each from an independent set of realisations (release states, dither and
       encoder phases): their standard deviation over the sets, pooled over the points — the
       noise, since the structure repeats from set to set. It includes the slopes that the
-      first set, on which the optimum was chosen, hides by that selection (benchmarks/README,
-      "Roughness from independent realisation sets").
+      first set, on which the optimum was chosen, hides by that selection.
     """
     sd = noise_sd
     if jitter_costs is not None and np.size(jitter_costs):
@@ -306,19 +305,16 @@ def bisect_profile_ends(
     """Narrow the bracket of each profile interval's ends by bisection, in place.
 
     The scan's values lie far apart away from the optimum (fractions of the whole range),
-    and an end interpolated linearly across such a gap can be anywhere in it: measured on a
-    joint fit of a synthetic backlash sweep (pair II, 10 % at 8 Hz), the drag torque's
-    profile was 12 below the optimum's cost at the last value inside and 1038 above it at
-    the next value scanned, 0.65 further in z (11 Laplace standard deviations), so its upper
-    end sat at the last value inside by construction, and missed the truth. Each round
+    and an end interpolated linearly across such a gap can be anywhere in it (the cost can
+    jump by a thousand between neighbouring scanned values, many Laplace standard deviations
+    apart). Each round
     evaluates, in one batch, the midpoint of every bracket (last value inside, first
     outside) wider than :data:`PROFILE_RESOLUTION` of its interval (and at least
     :data:`PROFILE_MIN_STEP` in z), with the other parameters set both ways of
     :func:`profile_guesses` (as at the value inside, and along the Laplace path), the lower
     cost standing. One guess is not enough: where the valley bends (``a`` against ``h_min``
     in mild rattle) the value inside's overstates the profile, and bisection then ends the
-    interval early (measured on the mild synthetic file of tests/test_fit.py: ``a``
-    [108, 159] µm against the true 85 µm with it alone, [80, 205] µm with both). ``valley``
+    interval early. ``valley``
     adds the guesses the model's physics makes (:func:`profile_guesses`).
 
     ``cost_of_points`` maps points (N, P) to their costs above the optimum's (N,). Returns
@@ -446,12 +442,8 @@ def admit_rivals(profiles: dict, others, dcosts, threshold: float) -> list[np.nd
 
     A point below the threshold is inside the 95 % confidence region whatever it is: another
     optimum, or a Levenberg–Marquardt run stopped at its step limit. One above it is not,
-    however close its cost in the fit (fewer realisations, the spread held fixed). Before
-    session 18 every candidate within √(2·n_data) of the best in the fit's cost was spanned;
-    in session 17, on a joint fit of a synthetic backlash sweep, an unconverged iterate so
-    widened ``a`` and the viscosity beyond the single recordings' intervals. On the coverage
-    study's 10 cases the two rules give the same coverage (benchmarks/README, "Rival
-    candidates").
+    however close its cost in the fit (fewer realisations, the spread held fixed), so an
+    unconverged iterate does not widen the intervals.
     """
     rivals = []
     for zr, dc in zip(others, dcosts, strict=True):

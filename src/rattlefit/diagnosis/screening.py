@@ -1,0 +1,118 @@
+"""Where each candidate effect is screened before it is fitted.
+
+An effect's fields are screened over a few decades below the top of their ranges, each
+together with alternatives of the free parameters (the film half-lengths and the drag
+torque), since a dissipative effect can stand in for the squeeze film and part of the drag
+that the fit without it has given all the dissipation there is.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..inference.parameters import Z_END, ParameterSpec
+from ..inference.problem import Problem
+from ..physics.effects import effect_class
+
+#: Where each effect field is screened before the fit: decades below the top of its range
+#: (each range's top is a generous size for a production gearbox, so the sizes worth finding
+#: lie within a few decades of it; the lower end means absent). Quarter decades (a factor
+#: 1.78) over the top two: an effect's basin can be narrower than half a decade.
+SCREEN_DECADES = (0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 1.75, 2.0, 3.0)
+
+
+def effect_specs(name: str) -> tuple[ParameterSpec, ...]:
+    """The fitted fields of effect ``name`` as
+    :class:`~rattlefit.inference.parameters.ParameterSpec` objects named ``"<effect>.<field>"`` (no
+    prior: log-uniform over the range)."""
+    return tuple(
+        ParameterSpec(f"{name}.{field}", unit, lo, hi, fd_log_step=0.3)
+        for field, (unit, lo, hi) in effect_class(name).ranges.items()
+    )
+
+
+#: The alternatives of (film half-length, drag torque) in the screening, as factors on their
+#: fitted values (a film factor 0: the bottom of its range, dry flanks). A dissipative effect
+#: can stand in for the squeeze film and for part of the drag, which the fit without it will
+#: have given all the dissipation there is; but the drag can be understated as well (the fit
+#: giving a film what is drag), hence the dry alternatives with more drag too.
+FREE_FACTORS = (
+    (1.0, 1.0),
+    (0.1, 1.0),
+    (0.01, 1.0),
+    (0.0, 1.0),
+    (1.0, 0.5),
+    (0.0, 0.5),
+    (1.0, 0.25),
+    (0.0, 0.25),
+    (0.0, 2.0),
+    (0.0, 4.0),
+    (0.0, 8.0),
+    (1.0, 4.0),
+)
+
+
+def screen_points(
+    z_off: np.ndarray, specs: Sequence[ParameterSpec], problem: Problem
+) -> np.ndarray:
+    """Starting points: each effect field alone at :data:`SCREEN_DECADES` below the top of
+    its range (the others absent), and, with several fields, all of them together; each
+    with the film half-length and the drag torque at :data:`FREE_FACTORS` of their values
+    at ``z_off``."""
+    first = len(problem.specs)
+    grid = [np.array([s.z_of(s.upper * 10.0**-k) for s in specs]) for k in SCREEN_DECADES]
+    fields = []
+    for j in range(len(specs)):
+        for g in grid:
+            z = z_off.copy()
+            z[first + j] = g[j]
+            fields.append(z)
+    if len(specs) > 1:
+        for g in grid:
+            z = z_off.copy()
+            z[first:] = g
+            fields.append(z)
+    free = free_indices(problem)
+    points = []
+    for alt in free_alternatives(z_off, problem):
+        for z in fields:
+            z = z.copy()
+            z[free] = alt[free]
+            points.append(z)
+    return np.stack(points)
+
+
+def film_indices(problem) -> list[int]:
+    """Where the film half-length(s) sit in the problem's coordinates (one per lubrication)."""
+    films = set(problem.films)
+    return [i for i, sp in enumerate(problem.specs) if sp.name in films]
+
+
+def free_indices(problem) -> list[int]:
+    """Where the film half-length(s) and the drag torque sit in the problem's coordinates."""
+    names = [sp.name for sp in problem.specs]
+    return [*film_indices(problem), names.index("drag_torque")]
+
+
+def free_alternatives(z: np.ndarray, problem) -> np.ndarray:
+    """``z`` with the film half-length(s) and the drag torque at each of
+    :data:`FREE_FACTORS` of their values in ``z`` (a factor 0: the bottom of the range); one
+    row per pair, every film half-length scaled alike."""
+    i_drag = free_indices(problem)[-1]
+
+    def scaled(i, factor):
+        spec = problem.specs[i]
+        if factor == 0:
+            return -Z_END
+        return spec.z_of(max(float(spec.value(z[i])) * factor, spec.lower))
+
+    rows = []
+    for f_film, f_drag in FREE_FACTORS:
+        row = np.array(z, dtype=float, copy=True)
+        for i_film in film_indices(problem):
+            row[i_film] = scaled(i_film, f_film)
+        row[i_drag] = scaled(i_drag, f_drag)
+        rows.append(row)
+    return np.stack(rows)

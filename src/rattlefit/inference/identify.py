@@ -1,0 +1,222 @@
+"""Identify a, T_b and the effective viscosity from recordings: the fit's orchestration.
+
+The paper tuned the oil-film half-length ``a`` by comparing measured and simulated FFT spectra
+by eye; :func:`identify` does it by least squares on log band PSDs of Δθ*, over ``a``, the
+drag torque and the viscosity (a factor on the catalogue viscosity at each recording's
+temperature), with the nuisances a real rig needs (mesh-stiffness scale, ``h_min``, each
+recording's backlash) fitted under their priors. Each parameter is fitted in an unconstrained
+coordinate ``z`` (:mod:`~rattlefit.inference.parameters`).
+
+The stages, each a function of its own module:
+
+1. the problem and its seeded realisations (:func:`~rattlefit.inference.problem.problem_from`);
+2. the search: seeded starts (:mod:`~rattlefit.inference.starts`), screened, then
+   Levenberg–Marquardt from the best (:func:`~rattlefit.inference.least_squares.refine_starts`);
+3. the noise model and Laplace covariance at the optimum
+   (:func:`~rattlefit.inference.laplace.laplace_at`);
+4. the free parameters' profile intervals
+   (:func:`~rattlefit.inference.profile.profile_stage`);
+5. the result (:mod:`~rattlefit.inference.result`).
+
+The method's rationale is in ``docs/identification.md``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable, Sequence
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..io.recording import Recording
+from ..reproducibility import platform_info
+from ..util import stamped
+from .laplace import Laplace, laplace_at
+from .least_squares import LM_REJECTIONS, Refined, refine_starts
+from .options import FitOptions
+from .problem import Problem, problem_from, release_states
+from .profile import (
+    ProfileStage,
+    film_valley,
+    profile_interval,
+    profile_stage,
+    span_profile_points,
+)
+from .result import FitResult, estimates_of
+from .starts import starting_points
+
+
+@dataclasses.dataclass(frozen=True)
+class Uncertainty:
+    """The covariance and profile stages' result at the final optimum ``z``, after
+    ``recentred`` re-centrings on the profiles' minimum."""
+
+    laplace: Laplace
+    profiles: ProfileStage
+    z: np.ndarray
+    recentred: int
+
+
+def degrees_of_freedom(problem: Problem) -> int:
+    """Data rows minus free parameters (those without a prior), at least 1."""
+    n_free = sum(1 for s in problem.specs if s.log_sd is None)
+    return max(int(np.asarray(problem.data).size) - n_free, 1)
+
+
+def uncertainty(refined: Refined, y0, options: FitOptions, rng, say) -> Uncertainty:
+    """The Laplace and profile stages at the search's optimum; with
+    ``recentre_rounds`` they start again from a profile point clearly below it."""
+    problem, z = refined.problem, refined.optimum
+    valley = film_valley(problem) if options.profile.valley else None
+    dof = degrees_of_freedom(problem)
+    dof_rec = dof / problem.n_rec  # each recording's share
+    rounds = options.experimental.recentre_rounds
+    recentred = 0
+    for recentre in range(rounds + 1):
+        say("re-estimating the spread at the optimum and the Laplace covariance …")
+        lap = laplace_at(problem, z, y0, options, dof_rec)
+        problem = lap.problem
+        say(f"χ² = {lap.chi2:.1f} on {dof} dof (band correlations included)")
+        stage = profile_stage(
+            lap,
+            z,
+            refined.contenders,
+            y0,
+            options,
+            valley=valley,
+            dof_rec=dof_rec,
+            rng=rng,
+            say=say,
+        )
+        if stage.lower is None:
+            break
+        dc_min, z_min = stage.lower
+        if recentre == rounds:
+            say(f"  the profiles reach {dc_min:.1f} below the optimum's cost (not re-centred)")
+            break
+        say(
+            f"the profiles reach {dc_min:.1f} below the optimum's cost (Monte Carlo allowance "
+            f"{1.645 * stage.noise_sd:.1f}): the Laplace and profile stages start again from "
+            "there"
+        )
+        z = np.asarray(z_min, dtype=float)
+        recentred += 1
+    return Uncertainty(lap, stage, z, recentred)
+
+
+def interval_ends(unc: Uncertainty, options: FitOptions) -> tuple[np.ndarray, np.ndarray]:
+    """Each parameter's 95 % interval in z: the free parameters' from their profiles, the
+    others' from the Laplace covariance (widened to span rivals and, with continuation,
+    every profile point inside the threshold)."""
+    stage = unc.profiles
+    z_lo, z_hi = np.array(stage.z_lo), np.array(stage.z_hi)
+    for i, prof in stage.profiles.items():
+        z_lo[i], z_hi[i] = profile_interval(prof, stage.threshold)[0]
+    if options.profile.continuation:
+        span_profile_points(stage.profiles, stage.threshold, z_lo, z_hi, unc.laplace.problem.specs)
+    return z_lo, z_hi
+
+
+def search_message(refined: Refined, recentred: int) -> str:
+    """How the search ended, in words (:attr:`FitResult.message`)."""
+    converged = refined.converged
+    text = "converged" if converged else "step limit reached"
+    if any(refined.stalled):
+        text += (
+            f" ({sum(refined.stalled)} of {len(refined.stalled)} Levenberg–Marquardt runs "
+            f"stalled at the cost's noise: {LM_REJECTIONS} rejected steps in a row)"
+        )
+    if recentred:
+        return text + f"; re-centred {recentred}× on the profiles' minimum"
+    return text + ("" if converged else "; estimate is the last iterate")
+
+
+def assemble_result(
+    unc: Uncertainty, refined: Refined, rigs, options: FitOptions, *, wall: float, platform
+) -> FitResult:
+    """The :class:`FitResult` of the stages' outputs."""
+    lap, z = unc.laplace, unc.z
+    problem = lap.problem
+    cov = lap.covariance
+    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+    corr = cov / np.outer(np.maximum(sd, 1e-300), np.maximum(sd, 1e-300))
+    z_lo, z_hi = interval_ends(unc, options)
+    p = len(problem.specs)
+    return FitResult(
+        parameters=estimates_of(problem, z, z_lo, z_hi),
+        correlation=corr,
+        names=[s.name for s in problem.specs],
+        chi2=lap.chi2,
+        dof=degrees_of_freedom(problem),
+        n_iterations=refined.n_iter,
+        success=refined.converged,
+        message=search_message(refined, unc.recentred),
+        seed=options.seed,
+        wall_time=wall,
+        recordings=[str(r.recording.path) for r in rigs],
+        options=options,
+        z=z,
+        covariance_z=cov,
+        measured_features=[np.asarray(d) for d in problem.data],
+        fitted_features=list(lap.mean),
+        sigma=[np.asarray(s) for s in problem.sigma],
+        band_centers=problem.bands.centers,
+        map_params=[
+            {
+                k: float(v)
+                for k, v in problem.params_for(jnp.asarray(z), i, jnp.zeros(p)).as_dict().items()
+            }
+            for i in range(problem.n_rec)
+        ],
+        chi2_recordings=[float(c) for c in lap.noise.chi2_recordings],
+        regime_share=[float(x) for x in lap.noise.regime_share],
+        noise=lap.noise,
+        profile=unc.profiles.info,
+        platform=platform,
+        problem=problem,
+    )
+
+
+def identify(
+    recordings: Sequence[Recording],
+    options: FitOptions | None = None,
+    *,
+    progress: Callable[[str], None] | None = None,
+) -> FitResult:
+    """Identify ``a``, ``drag_torque`` and the viscosity from one or more recordings.
+
+    Several recordings of one gear pair are fitted jointly: they share ``a``,
+    ``drag_torque``, the viscosity factor, the stiffness scale and ``h_min`` (e.g. a backlash
+    sweep as in the paper's Figs. 10–12); each has its own backlash. Recordings under
+    different lubrications each get their lubrication's film half-length (``a[boundary]``,
+    ``a[oil_jet]``, …) and share the rest: under oil jet the squeeze force saturates in ``a``
+    and pins the oil's viscosity, which a boundary recording alone cannot separate from ``a``
+    and ``h_min``.
+
+    ``options`` defaults to ``FitOptions()``; ``progress`` receives one-line messages while
+    the fit works. Raises :class:`~rattlefit.errors.RattlefitError` when the recordings
+    cannot be fitted jointly or an option names a parameter the fit does not have.
+    """
+    options = options or FitOptions()
+    t_start = time.perf_counter()
+    say = stamped(progress, t_start)  # progress, stamped with the time since the start
+    platform = platform_info()
+    problem, rigs, rng = problem_from(recordings, options)
+    say(
+        f"{len(rigs)} recording(s), {len(problem.specs)} parameters, "
+        f"{options.n_realisations} realisations per evaluation (seed {options.seed})"
+    )
+    starts = starting_points(
+        problem, options.n_starts, rng, nuisance_starts=options.experimental.nuisance_starts
+    )
+    refined = refine_starts(problem, starts, options, rng, say)
+    # the covariance uses more realisations than the search, released from fresh states
+    y0 = release_states(
+        refined.problem, refined.optimum, options.ensemble.n_covariance_realisations, rng
+    )
+    unc = uncertainty(refined, y0, options, rng, say)
+    wall = time.perf_counter() - t_start
+    say(f"done in {wall:.1f} s")
+    return assemble_result(unc, refined, rigs, options, wall=wall, platform=platform)

@@ -1,0 +1,255 @@
+"""What a fit returns: each parameter's estimate and interval, and the fit's diagnostics."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import jax.numpy as jnp
+import numpy as np
+from scipy import stats
+
+from ..physics.model import RattleParams
+from .noise import NoiseModel
+from .options import FitOptions
+from .parameters import ParameterSpec
+from .problem import Problem, problem_from
+from .profile import Z95
+
+#: χ² p-value below which a fit is flagged as poor (:attr:`FitResult.poor_fit`).
+POOR_FIT_P = 1e-3
+#: A parameter counts as identified when its 95 % interval is two-sided, inside the range,
+#: and narrower than this factor (about ±20 % around its middle): if the log estimate is
+#: Gaussian with the interval's own spread it then lands within 20 % of the truth with
+#: probability ≥ 92 %.
+IDENTIFIED_RATIO = 1.5
+
+
+@dataclasses.dataclass(frozen=True)
+class ParameterEstimate:
+    """A fitted parameter: its estimate and 95 % interval, in SI units (``unit``).
+
+    name, unit : the parameter (e.g. ``film_half_length``, ``"m"``).
+    estimate : the value at the optimum when ``identified``, else None.
+    lower, upper : the 95 % interval; for ``a`` and ``drag_torque`` a lower end of 0 means
+        the interval runs into dry flanks or no drag.
+    identified : two-sided, inside the range, narrower than :data:`IDENTIFIED_RATIO` and,
+        with a prior, at most half the prior's own 95 % width.
+    bound : when not identified, what the data support: ``"lower"`` or ``"upper"`` (one side
+        only), ``"interval"`` (two-sided but wide), ``"prior"`` (mostly the prior's), or
+        None (neither side).
+    map_value : the value at the optimum, always.
+    """
+
+    name: str
+    unit: str
+    estimate: float | None
+    lower: float
+    upper: float
+    identified: bool
+    bound: str | None = None
+    map_value: float | None = None
+
+    def as_dict(self) -> dict:
+        """The fields as a dict (the result JSON's ``parameters`` entries)."""
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class FitResult:
+    """What :func:`~rattlefit.inference.identify.identify` returns. R recordings, P fitted
+    parameters (:attr:`names`), B bands.
+
+    parameters : name → :class:`ParameterEstimate`: the film half-length(s) (``a`` or
+        ``a[lubrication]``), ``drag_torque``, ``viscosity`` (Pa s at the first recording's
+        temperature), then the nuisances.
+    correlation : (P, P) correlation of the Laplace covariance in z.
+    names : the P fitted parameters, in the order of ``z`` (``viscosity_scale`` unconverted).
+    chi2, dof : χ² of the data rows at the optimum (band correlations included) and its
+        degrees of freedom (R·B minus the free parameters).
+    n_iterations : Levenberg–Marquardt steps over all starts.
+    success : every Levenberg–Marquardt run converged or stalled before its step limit.
+    message : how the search ended, in words.
+    seed : the fit's seed (``FitOptions.seed``).
+    wall_time : seconds the fit took.
+    recordings : the recordings' paths.
+    options : the :class:`~rattlefit.inference.options.FitOptions` used.
+    z : (P,) the optimum in the unconstrained coordinates.
+    covariance_z : (P, P) Laplace covariance in z.
+    measured_features, fitted_features, sigma : R arrays (B,): the measured log10 band PSDs,
+        the model's mean at the optimum and each band's standard deviation.
+    band_centers : (B,) band centre frequencies, Hz.
+    map_params : R dicts of the :class:`~rattlefit.physics.model.RattleParams` at the optimum.
+    chi2_recordings : (R,) each recording's χ² at the optimum.
+    regime_share : (R,) share of the realisations in the regime each recording is compared
+        with; below one half the recording is in a rarer regime than another.
+    noise : the :class:`~rattlefit.inference.noise.NoiseModel` fixed at the optimum.
+    profile : what set the interval ends: ``threshold`` (Δcost above the optimum's),
+        ``monte_carlo_sd`` and, with the roughness allowance, ``roughness_rms``,
+        ``realisation_sets`` and ``roughness_sd``.
+    platform : what a seeded result depends on besides its inputs
+        (:func:`~rattlefit.reproducibility.platform_info`), captured when the fit ran.
+    problem : the fit's :class:`~rattlefit.inference.problem.Problem` at the optimum (its
+        realisations and band spread), for :mod:`~rattlefit.diagnosis` and the posterior;
+        not serialised. Rebuild it from the recordings with :meth:`problem_for`.
+    """
+
+    parameters: dict[str, ParameterEstimate]
+    correlation: np.ndarray
+    names: list[str]
+    chi2: float
+    dof: int
+    n_iterations: int
+    success: bool
+    message: str
+    seed: int
+    wall_time: float
+    recordings: list[str]
+    options: FitOptions
+    z: np.ndarray
+    covariance_z: np.ndarray
+    measured_features: list[np.ndarray]
+    fitted_features: list[np.ndarray]
+    sigma: list[np.ndarray]
+    band_centers: np.ndarray
+    map_params: list[dict[str, float]]
+    chi2_recordings: list[float] = dataclasses.field(default_factory=list)
+    regime_share: list[float] = dataclasses.field(default_factory=list)
+    noise: NoiseModel | None = dataclasses.field(default=None, repr=False, compare=False)
+    profile: dict[str, float] = dataclasses.field(default_factory=dict)
+    platform: dict = dataclasses.field(default_factory=dict, compare=False)
+    problem: Problem | None = dataclasses.field(default=None, repr=False, compare=False)
+
+    def problem_for(self, recordings) -> Problem:
+        """The fit's problem, with its band spread at the optimum: :attr:`problem` when the
+        fit ran in this process, else rebuilt from ``recordings`` (the fitted ones) and the
+        fit's options (:func:`~rattlefit.inference.problem.problem_from`)."""
+        if self.problem is not None:
+            return self.problem
+        problem, _, _ = problem_from(recordings, self.options)
+        return dataclasses.replace(problem, sigma=jnp.asarray(np.stack(self.sigma)))
+
+    @property
+    def p_value(self) -> float:
+        """Probability of a χ² at least this large if the model explained the data within
+        their run-to-run spread (χ² with ``dof`` degrees of freedom)."""
+        return float(stats.chi2.sf(self.chi2, max(self.dof, 1)))
+
+    @property
+    def poor_fit(self) -> bool:
+        """True when ``p_value`` < :data:`POOR_FIT_P`: the model's regime nearest the recording
+        does not explain it. The intervals are then widened by √(χ²/dof), but they can still
+        miss (for instance when the recording's regime is reached by too few realisations near
+        its true parameters to be found)."""
+        return self.p_value < POOR_FIT_P
+
+    @property
+    def poorly_fitted(self) -> list[int]:
+        """In a joint fit, the recordings whose own χ² is poor on their share of the degrees
+        of freedom (p < :data:`POOR_FIT_P`): where to look first when :attr:`poor_fit`."""
+        share = max(self.dof, 1) / max(len(self.chi2_recordings), 1)
+        return [
+            k for k, c in enumerate(self.chi2_recordings) if stats.chi2.sf(c, share) < POOR_FIT_P
+        ]
+
+    def rattle_params(self, k: int = 0) -> RattleParams:
+        """The MAP :class:`RattleParams` of recording ``k``."""
+        v = self.map_params[k]
+        return RattleParams(
+            v["film_half_length"],
+            v["drag_torque"],
+            v["viscosity"],
+            v["backlash"],
+            min_film=v["min_film"],
+            stiffness_scale=v["stiffness_scale"],
+        )
+
+    def to_json(self) -> dict:
+        """The ``--output`` document: parameters (SI) and fit diagnostics."""
+        return {
+            "parameters": {k: v.as_dict() for k, v in self.parameters.items()},
+            "fit": {
+                "chi2": self.chi2,
+                "dof": self.dof,
+                "reduced_chi2": self.chi2 / max(self.dof, 1),
+                "p_value": self.p_value,
+                "poor_fit": self.poor_fit,
+                "poorly_fitted_recordings": [self.recordings[k] for k in self.poorly_fitted],
+                "chi2_per_recording": self.chi2_recordings,
+                "regime_share_per_recording": self.regime_share,
+                "iterations": self.n_iterations,
+                "success": self.success,
+                "message": self.message,
+                "seed": self.seed,
+                "platform": self.platform,  # seeded results depend on it
+                "wall_time_s": self.wall_time,
+                "recordings": self.recordings,
+                "profile": self.profile,
+                "correlation": {"names": self.names, "matrix": self.correlation.tolist()},
+                "options": self.options.to_dict(),  # flat, priors as their specs
+            },
+        }
+
+
+def estimate(spec: ParameterSpec, z: float, lo_z: float, hi_z: float) -> ParameterEstimate:
+    """95 % interval through the transform; one-sided when it runs into the range's end.
+
+    ``identified`` needs a two-sided interval no wider than :data:`IDENTIFIED_RATIO` (else
+    ``bound="interval"``), and for a parameter with a prior at most half the prior's own 95 %
+    width, so that the data, not the prior, pin it down (else ``bound="prior"``, and the
+    interval spans the prior's central 95 % too). Neither gets an estimate. For the free
+    parameters (``a``, ``drag_torque``) the lower end of the range stands for zero (dry
+    flanks, no drag), and a bound that runs into it reads 0.
+    """
+    value = float(spec.value(z))
+    lower, upper = float(spec.value(lo_z)), float(spec.value(hi_z))
+    edge = 0.05  # within 5 % of the log range of an end counts as "runs into it"
+    u_lo = (math.log(lower) - math.log(spec.lower)) / spec.log_range
+    u_hi = (math.log(upper) - math.log(spec.lower)) / spec.log_range
+    at_top, at_bottom = u_hi > 1 - edge, u_lo < edge
+    floor = 0.0 if spec.log_sd is None else spec.lower
+
+    def result(estimate, lo, hi, identified, bound):
+        return ParameterEstimate(spec.name, spec.unit, estimate, lo, hi, identified, bound, value)
+
+    if at_top and at_bottom:
+        return result(None, floor, spec.upper, False, None)
+    if at_top:
+        return result(None, lower, spec.upper, False, "lower")
+    if at_bottom:
+        return result(None, floor, upper, False, "upper")
+    width = math.log(upper / lower)
+    if spec.log_sd is not None and width > Z95 * spec.log_sd:
+        # the data barely narrow it, so they cannot move it far from the prior either: an
+        # interval shifted off the prior's centre comes from the rough cost or an unfinished
+        # optimum, and the prior's own 95 % interval stays in
+        reach = math.exp(Z95 * spec.log_sd)
+        lower = max(min(lower, spec.center / reach), spec.lower)
+        upper = min(max(upper, spec.center * reach), spec.upper)
+        return result(None, lower, upper, False, "prior")
+    if width <= math.log(IDENTIFIED_RATIO):
+        return result(value, lower, upper, True, None)
+    return result(None, lower, upper, False, "interval")
+
+
+def estimates_of(problem: Problem, z, z_lo, z_hi) -> dict[str, ParameterEstimate]:
+    """Every parameter's :class:`ParameterEstimate` from the optimum ``z`` and its interval
+    ends in z: the film half-lengths, ``drag_torque`` and ``viscosity`` first (the viscosity
+    factor converted to Pa s at the first recording's temperature), then the nuisances."""
+    found = {s.name: estimate(s, z[i], z_lo[i], z_hi[i]) for i, s in enumerate(problem.specs)}
+    vs = found.pop("viscosity_scale")
+    mu0 = float(np.asarray(problem.viscosities)[0])
+    found["viscosity"] = ParameterEstimate(
+        "viscosity",
+        "Pa s",
+        None if vs.estimate is None else vs.estimate * mu0,
+        vs.lower * mu0,
+        vs.upper * mu0,
+        vs.identified,
+        vs.bound,
+        vs.map_value * mu0,
+    )
+    first = [*dict.fromkeys(problem.films), "drag_torque", "viscosity"]
+    ordered = {k: found[k] for k in first}
+    ordered.update({k: v for k, v in found.items() if k not in ordered})
+    return ordered
