@@ -7,8 +7,11 @@ drag torque ``T_b`` and the effective viscosity from recordings.
 
 Importing rattlefit enables JAX's 64-bit mode: the contact law spans displacements from
 nanometres (static deflection) to millimetres (backlash) and needs double precision. It also
-caps XLA's CPU instruction set (AVX2 on x86-64) so that a seeded result is the same on every
-machine: see :mod:`rattlefit.reproducibility`.
+caps XLA's CPU instruction set (AVX2 on x86-64), so that a seeded result depends on the CPU
+model but not on its instruction set: see :mod:`rattlefit.reproducibility`.
+
+The main API: :func:`read_recording`, :func:`identify` with :class:`FitOptions` (returning a
+:class:`FitResult`), :func:`sample`, :func:`diagnose`, :func:`synthesize` and :func:`simulate`.
 """
 
 from .reproducibility import pin_cpu_isa
