@@ -44,7 +44,7 @@ from .profile import (
     profile_stage,
     span_profile_points,
 )
-from .result import FitResult, estimates_of
+from .result import FitResult, estimates_of, profiles_in_si
 from .starts import starting_points
 
 
@@ -176,6 +176,7 @@ def assemble_result(
         profile=unc.profiles.info,
         platform=platform,
         problem=problem,
+        profiles=profiles_in_si(problem, unc.profiles.profiles),
     )
 
 

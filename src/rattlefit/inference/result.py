@@ -92,6 +92,8 @@ class FitResult:
     problem : the fit's :class:`~rattlefit.inference.problem.Problem` at the optimum (its
         realisations and band spread), for :mod:`~rattlefit.diagnosis` and the posterior;
         not serialised. Rebuild it from the recordings with :meth:`problem_for`.
+    profiles : each free parameter's profile, ``(value in SI, Δcost above the optimum's)``
+        pairs in increasing value; an interval is where Δcost < ``profile["threshold"]``.
     """
 
     parameters: dict[str, ParameterEstimate]
@@ -119,6 +121,7 @@ class FitResult:
     profile: dict[str, float] = dataclasses.field(default_factory=dict)
     platform: dict = dataclasses.field(default_factory=dict, compare=False)
     problem: Problem | None = dataclasses.field(default=None, repr=False, compare=False)
+    profiles: dict[str, list[tuple[float, float]]] = dataclasses.field(default_factory=dict)
 
     def problem_for(self, recordings) -> Problem:
         """The fit's problem, with its band spread at the optimum: :attr:`problem` when the
@@ -165,7 +168,8 @@ class FitResult:
         )
 
     def to_json(self) -> dict:
-        """The ``--output`` document: parameters (SI) and fit diagnostics."""
+        """The ``--output`` document: parameters (SI), fit diagnostics and the spectra
+        (log10 band PSDs of Δθ*, rad²/Hz, per recording: measured, fitted mean, σ)."""
         return {
             "parameters": {k: v.as_dict() for k, v in self.parameters.items()},
             "fit": {
@@ -185,8 +189,15 @@ class FitResult:
                 "wall_time_s": self.wall_time,
                 "recordings": self.recordings,
                 "profile": self.profile,
+                "profiles": {k: [list(p) for p in v] for k, v in self.profiles.items()},
                 "correlation": {"names": self.names, "matrix": self.correlation.tolist()},
                 "options": self.options.to_dict(),  # flat, priors as their specs
+            },
+            "spectra": {
+                "band_centers_hz": np.asarray(self.band_centers).tolist(),
+                "measured": [np.asarray(f).tolist() for f in self.measured_features],
+                "fitted": [np.asarray(f).tolist() for f in self.fitted_features],
+                "sigma": [np.asarray(s).tolist() for s in self.sigma],
             },
         }
 
@@ -253,3 +264,13 @@ def estimates_of(problem: Problem, z, z_lo, z_hi) -> dict[str, ParameterEstimate
     ordered = {k: found[k] for k in first}
     ordered.update({k: v for k, v in found.items() if k not in ordered})
     return ordered
+
+
+def profiles_in_si(problem: Problem, profiles: dict) -> dict[str, list[tuple[float, float]]]:
+    """Profiles ``{index: {t: (Δcost, z)}}`` in z as ``{name: [(value, Δcost), …]}`` in SI
+    units, in increasing value (see :attr:`FitResult.profiles`)."""
+    out = {}
+    for i, prof in profiles.items():
+        spec = problem.specs[i]
+        out[spec.name] = [(float(spec.value(t)), float(prof[t][0])) for t in sorted(prof)]
+    return out
