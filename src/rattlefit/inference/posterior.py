@@ -46,6 +46,7 @@ import numpy as np
 from ..errors import RattlefitError
 from ..io.recording import Recording
 from ..reproducibility import platform_info
+from . import arviz_io
 from .forward import evaluate
 from .identify import identify
 from .noise import NoiseModel
@@ -188,13 +189,16 @@ class Posterior:
     def predictive_features(self, recordings: Sequence[Recording], n_draws: int = 8, seed=0):
         """Mean simulated features at ``n_draws`` seeded draws of the kept chain, with the
         measured features and the band centres: ``(draws (n, R, B), data (R, B), centres (B,))``.
-        The draws use the target's own realisations (a posterior predictive check of the
-        statistic the likelihood compares)."""
+        The draws (:func:`~rattlefit.inference.arviz_io.predictive_pick` with ``seed``) use the
+        target's own realisations (a posterior predictive check of the statistic the
+        likelihood compares); the features are log10 band-mean PSDs (rad²/Hz), the centres Hz.
+        Raises :class:`~rattlefit.errors.RattlefitError` without a chain in fit coordinates or
+        for ``n_draws`` outside [1, kept draws]."""
         if self.chain_z is None or self.fit_options is None:
             raise RattlefitError("posterior: no chain in fit coordinates to draw from")
-        problem, _, _ = problem_from(recordings, self.fit_options)
         kept = self.chain_z[self.discard :].reshape(-1, self.chain_z.shape[-1])
-        pick = np.random.default_rng(seed).choice(len(kept), size=n_draws, replace=False)
+        pick = arviz_io.predictive_pick(len(kept), n_draws, seed)
+        problem, _, _ = problem_from(recordings, self.fit_options)
         draws = np.asarray(problem.mean_of(evaluate(problem, kept[pick])))
         return draws, np.asarray(problem.data), problem.bands.centers
 
@@ -207,15 +211,28 @@ class Posterior:
             for n, m, a, b in zip(self.names, med, lo, hi, strict=True)
         }
 
-    def to_arviz(self):
-        """An ``arviz.InferenceData`` (walkers as chains, kept draws only)."""
-        import arviz as az
+    def to_inference_data(
+        self, recordings: Sequence[Recording] | None = None, *, n_draws: int = 8, seed: int = 0
+    ):
+        """An ``arviz.InferenceData``: ``posterior`` (each parameter by name, SI, walkers as
+        chains, the kept draws) and ``sample_stats`` (``lp``); given the chain's
+        ``recordings``, also ``observed_data``, ``constant_data`` and a
+        ``posterior_predictive`` of ``n_draws`` draws chosen with ``seed``. The groups and
+        attributes are described in :mod:`rattlefit.inference.arviz_io`; raises as
+        :meth:`predictive_features`."""
+        return arviz_io.inference_data(self, recordings, n_draws=n_draws, seed=seed)
 
-        kept = np.swapaxes(self.chain[self.discard :], 0, 1)  # (walker, draw, P)
-        return az.from_dict(
-            posterior={n: kept[..., i] for i, n in enumerate(self.names)},
-            sample_stats={"lp": np.swapaxes(self.log_prob[self.discard :], 0, 1)},
-        )
+    def to_arviz(self):
+        """:meth:`to_inference_data` without recordings (``posterior`` and ``sample_stats``)."""
+        return self.to_inference_data()
+
+    def save_netcdf(
+        self, path: str | Path, recordings: Sequence[Recording] | None = None, **kw
+    ) -> Path:
+        """Write :meth:`to_inference_data` (``recordings`` and ``kw`` passed on) to the netCDF
+        file ``path`` atomically and return ``path``; ``arviz.from_netcdf(path)`` reopens it
+        without rattlefit."""
+        return arviz_io.save_netcdf(self, path, recordings, **kw)
 
     def to_json(self) -> dict:
         """The ``--output`` document: credible intervals (SI) and the chain's diagnostics."""
