@@ -6,7 +6,12 @@ known in closed form; the synthetic-recording check of the whole posterior is ma
 (run it with --run-slow).
 """
 
+import json
 import math
+import subprocess
+import sys
+import warnings
+from pathlib import Path
 
 import emcee
 import h5py
@@ -17,6 +22,8 @@ from scipy import stats
 import rattlefit as rf
 from rattlefit import FitOptions, identify, sample, synthesize
 from rattlefit.errors import RattlefitError
+from rattlefit.features.spectra import BandSpec, spectral_features
+from rattlefit.inference.forward import evaluate
 from rattlefit.inference.noise import NoiseModel
 from rattlefit.inference.parameters import ParameterSpec
 from rattlefit.inference.posterior import (
@@ -28,7 +35,7 @@ from rattlefit.inference.posterior import (
     write_context,
 )
 from rattlefit.inference.problem import build_problem
-from rattlefit.io.recording import OperatingPoint
+from rattlefit.io.recording import OperatingPoint, write_recording
 
 # Seeds: the chains' (emcee's stream), the draws' and the synthetic recording's.
 PRIOR_CHAIN_SEED = 3  # the chain without data
@@ -41,6 +48,8 @@ MILD_RECORDING_SEED = 11  # the mild boundary recording of pair II (as in test_f
 FIT_SEED = 0  # the identification the slow posterior starts from
 CHAIN_SEED = 0  # and its chain
 BUILD_SEED = 0  # release states and dither draws of the problem built without a fit
+SHORT_CHAIN_SEED = 4  # the short real chain saved in ArviZ's format
+PREDICTIVE_SEED = 7  # its predictive draws
 
 # Margins.
 KS_P = 1e-3  # a KS test of the draws against the prior fails only this rarely by chance
@@ -49,6 +58,7 @@ CORRELATION_TOLERANCE = 0.08  # of the posterior correlations, from the same cha
 INTERVAL_TOLERANCE = (0.01, 0.02)  # the median's and the 95 % ends' about μ ± 1.96 s (s 0.2)
 ESS_FACTOR = 0.3  # arviz's ESS of iid draws is their count, within ±30 %
 PREDICTIVE_RMS = 0.15  # log10: the run-to-run spread of this mild rattle's bands is about 0.1
+SUMMARY_RTOL = 1e-12  # arviz's quantiles and numpy's percentiles: one formula, rounding apart
 
 
 def _log_values(specs, z):
@@ -281,3 +291,138 @@ def test_predictive_plot_draws_from_the_kept_chain(tmp_path, small_recording):
     paths = plot_posterior(post, tmp_path, [small_recording])
     assert any(p.name.startswith("posterior_predictive_0_") for p in paths)
     assert all(p.stat().st_size > 0 for p in paths)
+
+
+# -- the posterior in ArviZ's format -------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def short_chain(tmp_path_factory, small_recording):
+    """A real 6-step chain of 12 walkers on the small recording (read back from its file),
+    its target centred on the truth (a chain file whose context stands in for the fit), saved
+    in ArviZ's format: (posterior, recording, chain file, netCDF file)."""
+    directory = tmp_path_factory.mktemp("short_chain")
+    small_recording = rf.read_recording(write_recording(small_recording, directory / "r.h5"))
+    options = FitOptions(n_realisations=3, seed=BUILD_SEED)
+    problem, _ = build_problem([small_recording], options, np.random.default_rng(BUILD_SEED))
+    truth = {"a": 0.085e-3, "drag_torque": 0.025, "viscosity_scale": 1.0}
+    z = np.array([s.z_of(truth.get(s.name, s.center)) for s in problem.specs])
+    data = np.asarray(problem.data)
+    noise = NoiseModel(
+        np.full(data.shape, 0.1), np.eye(data.size), np.ones(data.size), np.zeros(1), 100
+    )
+    chain_file = directory / "chain.h5"
+    ctx = ChainContext(
+        options, z, 0.01 * np.eye(len(z)), data, noise, [small_recording.path], SHORT_CHAIN_SEED
+    )
+    write_context(chain_file, ctx)
+    chain_options = SampleOptions(n_walkers=12, n_steps=6, discard=2)
+    post = sample([small_recording], options=chain_options, backend=chain_file)
+    with warnings.catch_warnings():  # arviz warns of a chain shorter than its walkers
+        warnings.filterwarnings("ignore", "More chains", UserWarning)
+        nc = post.save_netcdf(
+            directory / "chain.nc", [small_recording], n_draws=3, seed=PREDICTIVE_SEED
+        )
+    return post, small_recording, chain_file, nc
+
+
+def test_a_saved_posterior_reopens_as_the_kept_chain(short_chain):
+    import arviz as az
+
+    post, recording, chain_file, nc = short_chain
+    idata = az.from_netcdf(nc)
+    assert post.chain.shape == (6, 12, 6) and post.discard == 2
+    for i, (name, unit) in enumerate(zip(post.names, post.units, strict=True)):
+        var = idata.posterior[name]
+        assert var.dims == ("chain", "draw") and var.attrs["units"] == unit
+        np.testing.assert_array_equal(var.values, post.chain[2:, :, i].T)
+    # the log densities as emcee stored them in the chain file
+    stored = emcee.backends.HDFBackend(str(chain_file), name="mcmc", read_only=True)
+    np.testing.assert_array_equal(idata.sample_stats["lp"].values, stored.get_log_prob()[2:].T)
+    attrs = idata.posterior.attrs
+    assert (attrs["seed"], attrs["discard"]) == (SHORT_CHAIN_SEED, 2)
+    assert json.loads(attrs["recordings"]) == [str(recording.path)] == post.recordings
+    assert attrs["rattlefit_version"] == rf.__version__
+    assert json.loads(attrs["platform"])["jax"] == post.platform["jax"]
+    # and without rattlefit: a Python in which importing it fails reads the same numbers
+    script = (
+        "import json, sys; sys.modules['rattlefit'] = None; import arviz as az; "
+        f"idata = az.from_netcdf({str(nc)!r}); "
+        "print(json.dumps(idata.posterior['a'].values.tolist()))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, check=True
+    ).stdout
+    np.testing.assert_array_equal(np.array(json.loads(out)), post.chain[2:, :, 0].T)
+
+
+def test_arviz_summary_gives_the_printed_intervals(short_chain):
+    # az.summary's equal-tailed interval (stat_focus="median": median, eti_2.5%, eti_97.5%) of
+    # the saved file is the credible interval that `rattlefit sample` prints
+    import arviz as az
+
+    from rattlefit.report import DISPLAY, format_posterior
+
+    post, _, _, nc = short_chain
+    summary = az.summary(
+        az.from_netcdf(nc), kind="stats", stat_focus="median", hdi_prob=0.95, round_to="none"
+    )
+    printed = {line.split()[0]: line for line in format_posterior(post).splitlines()[2:]}
+    for name, unit in zip(post.names, post.units, strict=True):
+        row = summary.loc[name]
+        med, lo, hi = row["median"], row["eti_2.5%"], row["eti_97.5%"]
+        assert lo < med < hi, row
+        np.testing.assert_allclose([med, lo, hi], post.intervals()[name], rtol=SUMMARY_RTOL, atol=0)
+        mult = DISPLAY.get(unit, (1.0, unit))[0]
+        assert printed[name].split()[1] == f"{med * mult:.4g}", printed[name]
+        assert f"[{lo * mult:.4g}, {hi * mult:.4g}]" in printed[name], printed[name]
+
+
+def test_the_saved_observed_data_are_the_measured_features(short_chain):
+    import arviz as az
+
+    post, small_recording, chain_file, nc = short_chain
+    idata = az.from_netcdf(nc)
+    bands = BandSpec.for_recording(small_recording.sample_rate_hz)
+    measured = np.asarray(spectral_features(small_recording.relative_motion, bands))
+    observed = idata.observed_data["log10_psd"]
+    assert observed.dims == ("recording", "band")
+    np.testing.assert_allclose(observed.values[0], measured, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(observed["band"].values, bands.centers)
+    np.testing.assert_array_equal(idata.constant_data["band_center"].values, bands.centers)
+    with h5py.File(chain_file, "r") as f:  # what the chain's likelihood compared with
+        np.testing.assert_array_equal(observed.values, f["rattlefit/data"][:])
+    # each predictive draw is the mean simulated features at the kept walker and step it names
+    pp = idata.posterior_predictive["log10_psd"]
+    assert pp.dims == ("chain", "draw", "recording", "band") and pp.shape == (1, 3, 1, 30)
+    assert pp.attrs["units"] == observed.attrs["units"] == "log10(rad^2/Hz)"
+    assert idata.posterior_predictive.attrs["predictive_seed"] == PREDICTIVE_SEED
+    walker, step = pp["walker"].values, pp["step"].values
+    assert np.all((step >= post.discard) & (step < 6)) and np.all((walker >= 0) & (walker < 12))
+    problem, _ = build_problem(
+        [small_recording], post.fit_options, np.random.default_rng(BUILD_SEED)
+    )
+    expected = problem.mean_of(evaluate(problem, post.chain_z[step, walker]))
+    np.testing.assert_allclose(pp.values[0], np.asarray(expected), rtol=0, atol=1e-9)
+    assert np.sqrt(np.mean((pp.values - observed.values) ** 2)) < PREDICTIVE_RMS
+
+
+def test_a_failed_save_leaves_the_earlier_file(tmp_path, monkeypatch):
+    import arviz as az
+
+    chain = np.random.default_rng(NORMAL_DRAWS_SEED).standard_normal((10, 4, 1))
+    post = _posterior(chain, ["x"], ["1"], discard=2)
+    path = post.save_netcdf(tmp_path / "p.nc")
+
+    def broken(self, filename, **kw):
+        Path(filename).write_bytes(b"half a file")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(az.InferenceData, "to_netcdf", broken)
+    with pytest.raises(OSError, match="disk full"):
+        _posterior(2 * chain, ["x"], ["1"], discard=2).save_netcdf(path)
+    monkeypatch.undo()
+    np.testing.assert_array_equal(az.from_netcdf(path).posterior["x"].values, chain[2:, :, 0].T)
+    assert [p.name for p in tmp_path.iterdir()] == ["p.nc"]
+    with pytest.raises(RattlefitError, match="no chain in fit coordinates"):
+        post.to_inference_data([object()])

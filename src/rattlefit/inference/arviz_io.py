@@ -17,10 +17,12 @@ Groups of :func:`inference_data`:
   The coordinate ``band`` is the centre frequency in Hz and ``recording`` the index of the
   recording in the attribute ``recordings``.
 
-Every group carries the attributes ``seed`` (the chain's), ``discard``, ``recordings`` (the
-paths), ``rattlefit_version`` and ``platform`` (a JSON object: what seeded results depend on);
-``posterior_predictive`` also ``predictive_seed`` and ``predictive_draws``. The file holds only
-numbers, strings and these attributes, so ``arviz.from_netcdf`` reopens it without rattlefit.
+Every group carries the attributes ``seed`` (the chain's), ``discard``, ``recordings`` (a
+JSON list of the recordings' paths, ``"<memory>"`` for one never read from a file),
+``rattlefit_version`` and ``platform`` (a JSON object: what seeded results depend on);
+``posterior_predictive`` also ``predictive_seed`` and ``predictive_draws``. The file holds
+only numbers, strings and these attributes, so ``arviz.from_netcdf`` reopens it without
+rattlefit.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ import numpy as np
 
 from ..errors import RattlefitError
 from ..io.recording import Recording
+from ..io.schema import MEMORY
 from ..util import atomic_write
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -63,7 +66,7 @@ def _attrs(post: Posterior, recordings: Sequence[Recording] | None) -> dict:
     paths = (
         list(post.recordings)
         if recordings is None
-        else [str(r.path) if r.path else "<memory>" for r in recordings]
+        else [str(r.path) if r.path else MEMORY for r in recordings]
     )
     return {
         "seed": int(post.seed),
