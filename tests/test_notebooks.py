@@ -1,0 +1,73 @@
+"""Every notebook in ``notebooks/`` runs top to bottom in its short version.
+
+Each ``notebooks/*.ipynb`` is executed in memory with nbclient (the committed file is never
+written) in a kernel of the interpreter running the tests, with ``RATTLEFIT_NOTEBOOK_QUICK=1``
+(the notebooks' parameter cells then choose short settings), ``RATTLEFIT_CACHE_DIR=off`` and
+the notebooks folder as working directory. The notebooks' own assert cells hold their
+results against the paper and against the recordings' truth, so a notebook whose numbers drift
+fails here with the failing cell's error.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import sys
+from pathlib import Path
+
+import nbformat
+import pytest
+from ipykernel.kernelspec import write_kernel_spec
+from nbclient import NotebookClient
+from nbclient.exceptions import CellExecutionError
+
+import rattlefit
+
+NOTEBOOKS = Path(__file__).resolve().parents[1] / "notebooks"
+#: Generous: a full-settings cell runs for minutes; a quick one for well under one.
+CELL_TIMEOUT_S = 900
+KERNEL = "python3"
+
+
+def kernel_env() -> dict[str, str]:
+    """The kernel's environment: this one, the notebooks' quick switch, no compilation cache,
+    and the rattlefit the tests import first on the path (a checkout's ``src`` or the
+    installed package's folder)."""
+    env = dict(os.environ)
+    env["RATTLEFIT_NOTEBOOK_QUICK"] = "1"
+    env["RATTLEFIT_CACHE_DIR"] = "off"
+    package_root = str(Path(rattlefit.__file__).resolve().parents[1])
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH", "")) if p)
+    return env
+
+
+@pytest.fixture
+def own_kernel(tmp_path, monkeypatch):
+    """A ``python3`` kernel spec that starts this interpreter (``sys.executable``), first on
+    Jupyter's search path, so that the notebooks run in the test environment and not in a
+    ``python3`` kernel registered elsewhere (the user's or the system's)."""
+    write_kernel_spec(str(tmp_path / "kernels" / KERNEL))
+    monkeypatch.setenv("JUPYTER_PATH", str(tmp_path))
+    return sys.executable
+
+
+@pytest.mark.parametrize("notebook", sorted(NOTEBOOKS.glob("*.ipynb")), ids=lambda p: p.stem)
+def test_notebook_runs(notebook: Path, own_kernel):
+    nb = nbformat.read(notebook, as_version=4)
+    client = NotebookClient(
+        nb,
+        kernel_name=KERNEL,
+        timeout=CELL_TIMEOUT_S,
+        resources={"metadata": {"path": str(NOTEBOOKS)}},
+    )
+    try:
+        client.execute(env=kernel_env())
+    except CellExecutionError as err:
+        # the kernel colours its traceback; the report is read as plain text
+        message = re.sub(r"\x1b\[[0-9;]*m", "", str(err))
+        pytest.fail(f"{notebook.name}: a cell failed\n{message}", pytrace=False)
+
+
+def test_notebooks_exist():
+    """The glob above finds the notebooks (an empty parametrisation would pass silently)."""
+    assert sorted(NOTEBOOKS.glob("*.ipynb")), f"no notebooks in {NOTEBOOKS}"
