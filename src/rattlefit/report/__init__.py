@@ -1,0 +1,15 @@
+"""What a person reads and looks at: text tables, PNG plots and the self-contained HTML
+report of an identification, a posterior and a diagnosis."""
+
+from .plots import plot_diagnosis, plot_fit, plot_posterior
+from .tables import DISPLAY, format_diagnosis, format_posterior, format_table
+
+__all__ = [
+    "DISPLAY",
+    "format_diagnosis",
+    "format_posterior",
+    "format_table",
+    "plot_diagnosis",
+    "plot_fit",
+    "plot_posterior",
+]

@@ -1,0 +1,188 @@
+"""The text tables of an identification, a posterior and a diagnosis: what a person reads
+first in a terminal."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..diagnosis.result import MISSED_Z, Diagnosis
+from ..inference.posterior import Posterior
+from ..inference.profile import CHI2_1_95
+from ..inference.result import IDENTIFIED_RATIO, FitResult
+
+#: Display units of the parameters: (SI multiplier, label).
+DISPLAY = {"m": (1e3, "mm"), "N m": (1.0, "N m"), "Pa s": (1.0, "Pa s"), "1": (1.0, "")}
+
+
+def format_table(result: FitResult) -> str:
+    """The parameters as a readable table (estimate, 95 % interval, unit, identified)."""
+    rows = [("parameter", "estimate", "95 % interval", "unit", "identified")]
+    for name, p in result.parameters.items():
+        mult, unit = DISPLAY.get(p.unit, (1.0, p.unit))
+        if p.identified:
+            est = f"{p.estimate * mult:.4g}"
+            ci = f"[{p.lower * mult:.4g}, {p.upper * mult:.4g}]"
+            ident = "yes"
+        elif p.bound == "lower":
+            est, ci, ident = f"≥ {p.lower * mult:.4g}", "(bound)", "no: lower bound only"
+        elif p.bound == "upper":
+            est, ci, ident = f"≤ {p.upper * mult:.4g}", "(bound)", "no: upper bound only"
+        elif p.bound in ("interval", "prior"):
+            est = "—"
+            ci = f"[{p.lower * mult:.4g}, {p.upper * mult:.4g}]"
+            ident = (
+                f"no: interval too wide (×{p.upper / p.lower:.2f} > ×{IDENTIFIED_RATIO})"
+                if p.bound == "interval"
+                else "no: prior-dominated"
+            )
+        else:
+            est, ci, ident = "—", f"[{p.lower * mult:.4g}, {p.upper * mult:.4g}]", "no"
+        rows.append((name, est, ci, unit, ident))
+    widths = [max(len(r[i]) for r in rows) for i in range(5)]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    per = ""
+    if len(result.chi2_recordings) > 1:
+        per = " (" + " + ".join(f"{c:.1f}" for c in result.chi2_recordings) + " by recording)"
+    lines.append(
+        f"χ² = {result.chi2:.1f}{per} on {result.dof} dof; {result.n_iterations} "
+        f"Levenberg–Marquardt steps; seed {result.seed}; {result.wall_time:.1f} s"
+    )
+    if "threshold" in result.profile:
+        lines.append(_profile_line(result.profile))
+    for k, share in enumerate(result.regime_share):
+        if share < 0.5:
+            which = "the recording"
+            if len(result.recordings) > 1:
+                which = Path(result.recordings[k]).name
+            lines.append(
+                f"note: {which} is in a regime that {share:.0%} of the model's releases reach "
+                "at the fitted parameters (the others settle into another); the fit compares it "
+                "with that regime (FitOptions.regime), since which one a rig is on is its "
+                "history's choice."
+            )
+    if result.poor_fit:
+        which = "this recording"
+        widened = f"√(χ²/dof) = {(result.chi2 / result.dof) ** 0.5:.1f}"
+        if len(result.chi2_recordings) > 1:
+            poor = [Path(result.recordings[k]).name for k in result.poorly_fitted]
+            which = ", ".join(poor) if poor else "these recordings together"
+            widened = "each recording's own √(χ²/dof)"
+        lines.append(
+            f"warning: χ² is far above its {result.dof} degrees of freedom "
+            f"(p = {result.p_value:.1e}): the model does not explain {which} within "
+            f"its run-to-run spread. The intervals are widened by {widened} but may still "
+            "miss; look at the spectrum plot (--plot)."
+        )
+    return "\n".join(lines)
+
+
+def _profile_line(profile: dict) -> str:
+    """How the 95 % intervals' profile threshold was set: χ²₁'s 3.84 plus an allowance."""
+    sd, source = profile["monte_carlo_sd"], "the Monte Carlo noise of a cost difference"
+    rough = profile.get("roughness_sd", profile.get("roughness_rms", 0.0))
+    if rough > sd:
+        sd = rough
+        if "roughness_sd" in profile:
+            source = (
+                "the cost's spread 1–2 % from the optimum over "
+                f"{profile['realisation_sets']} realisation sets"
+            )
+        else:
+            source = "the cost's roughness (rms) 1–2 % from the optimum"
+    return (
+        f"95 % intervals: where the profile cost is within {profile['threshold']:.1f} of the "
+        f"optimum's (χ²₁ {CHI2_1_95:.2f} + 1.645 × {sd:.1f}, {source})"
+    )
+
+
+def format_posterior(post: Posterior) -> str:
+    """Credible intervals (median, 95 %), effective sample sizes and the chain's diagnostics."""
+    rows = [("parameter", "median", "95 % credible interval", "unit", "ESS", "τ (steps)")]
+    for (name, (med, lo, hi)), unit, ess, tau in zip(
+        post.intervals().items(), post.units, post.ess, post.autocorr_time, strict=True
+    ):
+        mult, shown = DISPLAY.get(unit, (1.0, unit))
+        rows.append(
+            (
+                name,
+                f"{med * mult:.4g}",
+                f"[{lo * mult:.4g}, {hi * mult:.4g}]",
+                shown,
+                f"{ess:.0f}",
+                f"{tau:.1f}",
+            )
+        )
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    steps, walkers = post.chain.shape[:2]
+    lines.append(
+        f"{walkers} walkers × {steps} steps (first {post.discard} discarded); acceptance "
+        f"{np.mean(post.acceptance):.2f}; {post.n_evaluations} points simulated; seed "
+        f"{post.seed}; {post.wall_time:.1f} s"
+    )
+    if not post.reliable:
+        lines.append(
+            "note: the kept chain is shorter than 50 autocorrelation times, so τ and the ESS "
+            "are rough; continue the chain (same --backend, more --steps) to firm them up."
+        )
+    return "\n".join(lines)
+
+
+def _si(value: float, unit: str) -> str:
+    mult, shown = DISPLAY.get(unit, (1.0, unit))
+    return f"{value * mult:.3g} {shown}".rstrip()
+
+
+def format_diagnosis(diag: Diagnosis) -> str:
+    """Where the model misses, each effect's χ² without and with it, and the verdict."""
+    lines = []
+    missed = diag.missed_bands
+    if missed:
+        lines.append(f"where the fitted model misses the data (|z| > {MISSED_Z:g}):")
+        for m in missed:
+            lo, hi = m["band_hz"]
+            more = "more" if m["z"] > 0 else "less"
+            lines.append(
+                f"  recording {m['recording']}: {lo:7.1f}–{hi:7.1f} Hz  z = {m['z']:+.1f} "
+                f"(the recording has {more} power)"
+            )
+    else:
+        lines.append(
+            f"no band misses by more than {MISSED_Z:g} σ (χ² = {diag.baseline.chi2:.1f} on "
+            f"{diag.baseline.dof} dof, p = {diag.baseline.p_value:.2g})"
+        )
+    rows = [("effect", "χ² without → with", "gap closed", "p", "supported", "fitted size")]
+    for o in diag.outcomes:
+        size = ", ".join(f"{k} {_si(v, o.units[k])}" for k, v in o.values.items())
+        rows.append(
+            (
+                o.name,
+                f"{o.chi2_without:.1f} → {o.chi2_with:.1f}",
+                f"{100 * o.gap_closed:.0f} %",
+                f"{o.p_value:.2g}",
+                "yes" if o.supported else "no",
+                size,
+            )
+        )
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    table = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
+    table.insert(1, "  ".join("-" * w for w in widths))
+    lines += ["", *table, ""]
+    best = diag.verdict
+    if best is None:
+        lines.append(
+            "verdict: no effect is supported — none lowers χ² by more than its Monte Carlo "
+            "noise with an F-test p below the family-wise level over the effects tried."
+        )
+    else:
+        lines.append(
+            f"verdict: {best.name} — χ² {best.chi2_without:.1f} → {best.chi2_with:.1f}, "
+            f"{100 * best.gap_closed:.0f} % of the excess misfit removed (p = {best.p_value:.2g})."
+        )
+    lines += [f"warning: {w}" for w in diag.warnings]
+    lines.append(f"seed {diag.seed}; {diag.wall_time:.0f} s")
+    return "\n".join(lines)
