@@ -124,63 +124,11 @@ def main() -> None:
 @_clean_errors
 def info(file: Path, as_json: bool) -> None:
     """Summarise a recording: gear pair, operating point, backlash, IGR, suspicious data."""
-    from .inference.rig import setup
-    from .io.recording import inspect_warnings, read_recording
+    from .io.recording import read_recording
+    from .report.summary import format_summary, recording_summary
 
-    rec = read_recording(file)
-    rig = setup(rec)
-    g, op = rig.geometry, rec.operating
-    summary = {
-        "file": str(file),
-        "title": rec.title,
-        "gear_pair": {
-            "teeth": [g.teeth_driving, g.teeth_driven],
-            "center_distance_mm": rec.gear_pair.center_distance_mm,
-            "angular_backlash_rad": g.angular_backlash,
-            "backlash_m": g.backlash,
-            **g.describe(),
-        },
-        "operating": {
-            "lubrication": op.lubrication,
-            "oil_temperature_c": op.oil_temperature_c,
-            "viscosity_Pa_s": rig.viscosity,
-            "drive_mean_speed_rad_s": op.drive_mean_speed_rad_s,
-            "drive_speed_amplitude_rad_s": op.drive_speed_amplitude_rad_s,
-            "drive_frequency_hz": op.drive_frequency_hz,
-            "measured_mean_speed_rad_s": float(rig.drive.mean_speed),
-        },
-        "samples": rec.n_samples,
-        "sample_rate_hz": rec.sample_rate_hz,
-        "duration_s": rec.duration,
-        "relative_motion_ptp_rad": float(rec.relative_motion.max() - rec.relative_motion.min()),
-        "rattle_index_rad_hz": rig.rattle_index(),
-        "no_rattle_drag_torque_Nm": rig.no_rattle_drag_torque(),
-        "notes": inspect_warnings(rec),
-    }
-    if as_json:
-        click.echo(json.dumps(summary, indent=2))
-        return
-    gp, o = summary["gear_pair"], summary["operating"]
-    lines = [
-        f"{file}  {rec.title}".rstrip(),
-        f"  gear pair      z1/z2 = {g.teeth_driving}/{g.teeth_driven}, centre distance "
-        f"{gp['center_distance_mm']:.2f} mm, εα = {gp['transverse_contact_ratio']:.2f}, "
-        f"εβ = {gp['overlap_contact_ratio']:.2f}, mesh mode ≈ {gp['mesh_frequency_hz']:.0f} Hz",
-        f"  backlash       {g.angular_backlash:.4f} rad (Δθ*) = {g.backlash * 1e3:.3f} mm on the "
-        "pitch circle",
-        f"  lubrication    {op.lubrication}, {op.oil_temperature_c:g} °C → μ = "
-        f"{rig.viscosity:.3f} Pa s (ASTM D341)",
-        f"  drive          Ω = {op.drive_mean_speed_rad_s:g} rad/s "
-        f"± {op.drive_speed_amplitude_rad_s:g} at {op.drive_frequency_hz:g} Hz "
-        f"(measured mean {o['measured_mean_speed_rad_s']:.3f} rad/s)",
-        f"  recording      {rec.n_samples} samples at {rec.sample_rate_hz:g} Hz = "
-        f"{rec.duration:g} s",
-        f"  IGR            {summary['rattle_index_rad_hz']:.4g} rad·Hz (20–5000 Hz, eq. 10)",
-        f"  rattle         expected unless T_b > {summary['no_rattle_drag_torque_Nm']:.4f} N m "
-        "(Singh et al. 1989: I2·(r1/r2)·max θ̈1)",
-    ]
-    lines += [f"  note: {n}" for n in summary["notes"]] or ["  notes          none"]
-    click.echo("\n".join(lines))
+    summary = recording_summary(read_recording(file), file)
+    click.echo(json.dumps(summary, indent=2) if as_json else format_summary(summary))
 
 
 @main.command()

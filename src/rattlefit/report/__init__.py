@@ -1,6 +1,7 @@
 """What a person reads and looks at: text tables, PNG plots and the self-contained HTML
 report of an identification, a posterior and a diagnosis."""
 
+from .document import html_report, write_report
 from .plots import plot_diagnosis, plot_fit, plot_posterior
 from .tables import DISPLAY, format_diagnosis, format_posterior, format_table
 
@@ -9,7 +10,9 @@ __all__ = [
     "format_diagnosis",
     "format_posterior",
     "format_table",
+    "html_report",
     "plot_diagnosis",
     "plot_fit",
     "plot_posterior",
+    "write_report",
 ]

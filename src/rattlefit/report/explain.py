@@ -1,0 +1,135 @@
+"""Plain sentences on how well the data pin each fitted parameter down, and why, for the
+HTML report's parameter table; and the numbers as the table shows them."""
+
+from __future__ import annotations
+
+import re
+
+from ..inference.result import IDENTIFIED_RATIO
+from .tables import DISPLAY
+
+#: What each fitted parameter is, in words.
+MEANING = {
+    "a": "oil-film half-length",
+    "drag_torque": "bearing drag torque on the driven gear",
+    "viscosity": "effective dynamic viscosity of the oil at the recording's temperature",
+    "stiffness_scale": "factor on the mesh stiffness",
+    "min_film": "adsorbed film thickness h_min below which the squeeze force saturates",
+    "backlash": "backlash on the pitch circle",
+}
+
+
+def base_name(name: str) -> str:
+    """``a[boundary]`` → ``a``, ``backlash[0]`` → ``backlash``."""
+    return re.sub(r"\[.*\]$", "", name)
+
+
+def film_lubrication(name: str, lubrications: list[str]) -> str | None:
+    """The lubrication a film parameter belongs to: ``a[oil_jet]`` → ``oil_jet``, ``a`` → the
+    recordings' one lubrication; None for a parameter that is not a film half-length."""
+    if base_name(name) != "a":
+        return None
+    m = re.fullmatch(r"a\[(.+)\]", name)
+    if m:
+        return m.group(1)
+    return lubrications[0] if len(set(lubrications)) == 1 else None
+
+
+def shown(value: float, unit: str) -> str:
+    """``value`` (SI, ``unit``) in the report's display unit, 4 significant digits, no unit."""
+    mult, _ = DISPLAY.get(unit, (1.0, unit))
+    return f"{value * mult:.4g}"
+
+
+def display_unit(unit: str) -> str:
+    """The unit the report shows a parameter of SI ``unit`` in (mm for m)."""
+    return DISPLAY.get(unit, (1.0, unit))[1]
+
+
+def estimate_cells(p: dict) -> tuple[str, str]:
+    """``(estimate, 95 % interval)`` as the table shows a parameter entry of the fit JSON
+    (display units, :func:`shown`): a bound reads ``≥ x`` or ``≤ x``."""
+    unit = p["unit"]
+    interval = f"[{shown(p['lower'], unit)}, {shown(p['upper'], unit)}]"
+    if p["identified"] and p["estimate"] is not None:
+        return shown(p["estimate"], unit), interval
+    if p["bound"] == "lower":
+        return f"≥ {shown(p['lower'], unit)}", interval
+    if p["bound"] == "upper":
+        return f"≤ {shown(p['upper'], unit)}", interval
+    return "—", interval
+
+
+def verdict_word(p: dict) -> str:
+    """One or two words for the table's status column."""
+    if p["identified"]:
+        return "identified"
+    return {
+        "lower": "lower bound only",
+        "upper": "upper bound only",
+        "interval": "too wide",
+        "prior": "prior-dominated",
+    }.get(p["bound"], "not pinned down")
+
+
+def _why_one_sided(base: str, lub: str | None, bound: str) -> str:
+    if base == "a" and bound == "lower" and lub == "oil_jet":
+        return (
+            "under oil jet the squeeze film saturates once a ≫ √(R·h), so any longer film "
+            "fits as well; the data pin μ/√h_min instead."
+        )
+    if base == "a" and bound == "upper":
+        return "the interval runs down to a = 0: dry flanks (no film) fit the data as well."
+    if base == "drag_torque" and bound == "upper":
+        return (
+            "the interval runs down to T_b = 0: the spectrum is explained as well without "
+            "bearing drag."
+        )
+    if bound == "lower":
+        return "every value up to the top of the fitted range fits the data as well."
+    return "every value down to the bottom of the fitted range fits the data as well."
+
+
+def explain(name: str, p: dict, lubrications: list[str]) -> str:
+    """A plain sentence (or two) on how well the data pin parameter ``name`` down and why.
+
+    ``p`` is its entry in the fit JSON's ``parameters`` (``identified``, ``bound``, ``lower``,
+    ``upper``, SI), ``lubrications`` those of the fitted recordings. A boundary film adds
+    that it trades against h_min and the viscosity (the data pin μ·a³/h_min²).
+    """
+    base, bound = base_name(name), p.get("bound")
+    lub = film_lubrication(name, lubrications)
+    lo, hi = p["lower"], p["upper"]
+    if p["identified"]:
+        half = 50.0 * (hi - lo) / (hi + lo)
+        text = (
+            f"Identified: the data pin it to about ±{half:.0f} % (95 % interval a factor "
+            f"{hi / lo:.2f} wide, below ×{IDENTIFIED_RATIO})."
+        )
+    elif bound in ("lower", "upper"):
+        word = "A lower" if bound == "lower" else "An upper"
+        text = f"{word} bound only: {_why_one_sided(base, lub, bound)}"
+    elif bound == "prior":
+        text = (
+            "Prior-dominated: the data barely narrow its prior, so the interval shown is the "
+            "prior's central 95 % rather than what the recording says."
+        )
+    elif bound == "interval":
+        text = (
+            f"Too wide to count as identified: the interval spans a factor {hi / lo:.2f}, "
+            f"more than ×{IDENTIFIED_RATIO}."
+        )
+    else:
+        text = "Not pinned down: the interval runs into both ends of the fitted range."
+    if lub == "boundary":
+        text += (
+            " In boundary lubrication the film trades against h_min and the viscosity: the "
+            "spectrum pins the squeeze-film group μ·a³/h_min², so a is known only as well as "
+            "h_min and μ are (a prior on h_min, --prior min_film=…, sharpens it)."
+        )
+    elif base == "viscosity" and "boundary" in lubrications:
+        text += (
+            " With a boundary film it trades against a and h_min along μ·a³/h_min², the "
+            "group the spectrum pins."
+        )
+    return text

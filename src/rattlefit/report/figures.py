@@ -1,0 +1,181 @@
+"""The HTML report's figures, drawn from the JSON documents, the recordings and an ArviZ
+``InferenceData``, each returned as PNG bytes (nothing is written to disk)."""
+
+from __future__ import annotations
+
+import io
+import warnings
+
+import numpy as np
+
+from .explain import display_unit
+from .plots import _pyplot
+from .tables import DISPLAY
+
+#: Seconds of the recording's Δθ* shown as a time history.
+TIME_HISTORY_S = 0.3
+#: Resolution of the embedded figures, dots per inch.
+DPI = 90
+
+
+def png(fig) -> bytes:
+    """``fig`` as PNG bytes; the figure is closed."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI, bbox_inches="tight")
+    _pyplot().close(fig)
+    return buf.getvalue()
+
+
+def spectrum(spectra: dict, k: int, title: str) -> bytes:
+    """Recording ``k``'s measured band PSDs against the fitted model's mean and its ±2σ band
+    (the fit JSON's ``spectra``: log10 PSD of Δθ*, rad²/Hz; σ in log10 units)."""
+    centres = np.asarray(spectra["band_centers_hz"], dtype=float)
+    measured = np.asarray(spectra["measured"][k], dtype=float)
+    fitted = np.asarray(spectra["fitted"][k], dtype=float)
+    sigma = np.asarray(spectra["sigma"][k], dtype=float)
+    fig, ax = _pyplot().subplots(figsize=(8, 3.8))
+    ax.fill_between(
+        centres,
+        10 ** (fitted - 2 * sigma),
+        10 ** (fitted + 2 * sigma),
+        color="C0",
+        alpha=0.2,
+        lw=0,
+        label="model ±2σ (run-to-run spread)",
+    )
+    ax.plot(centres, 10**fitted, "-", color="C0", lw=1.2, label="fitted model (mean)")
+    ax.plot(centres, 10**measured, "o", ms=4, color="k", label="measured")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("band centre (Hz)")
+    ax.set_ylabel("band PSD of Δθ* (rad²/Hz)")
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=8)
+    ax.grid(True, which="major", color="0.9", lw=0.6)
+    return png(fig)
+
+
+def time_history(time_s, relative_motion_rad, backlash_rad: float, title: str) -> bytes:
+    """The first :data:`TIME_HISTORY_S` s of the measured Δθ* (mrad), with the backlash's
+    extent around the motion's middle as dotted lines."""
+    t = np.asarray(time_s, dtype=float)
+    x = np.asarray(relative_motion_rad, dtype=float)
+    n = int(np.searchsorted(t, t[0] + TIME_HISTORY_S))
+    fig, ax = _pyplot().subplots(figsize=(8, 2.8))
+    ax.plot(t[:n], x[:n] * 1e3, color="k", lw=0.7)
+    mid = 0.5 * (x.max() + x.min()) * 1e3
+    for s in (-0.5, 0.5):
+        ax.axhline(mid + s * backlash_rad * 1e3, color="0.5", ls=":", lw=0.8)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("Δθ* (mrad)")
+    ax.set_title(f"{title}: measured relative motion (dotted: backlash)", fontsize=10)
+    return png(fig)
+
+
+def profiles(curves: dict, threshold: float | None, parameters: dict) -> bytes:
+    """Each free parameter's profile (Δcost above the optimum against its value in display
+    units), the threshold that sets the 95 % interval as a dashed line, and the interval
+    shaded. ``curves`` is the fit JSON's ``fit.profiles``."""
+    names = list(curves)
+    fig, axes = _pyplot().subplots(1, len(names), figsize=(4.2 * len(names), 3.2), squeeze=False)
+    for ax, name in zip(axes[0], names, strict=True):
+        pts = np.asarray(curves[name], dtype=float).reshape(-1, 2)
+        p = parameters.get(name, {})
+        unit = p.get("unit", "1")
+        mult = DISPLAY.get(unit, (1.0, unit))[0]
+        ax.plot(pts[:, 0] * mult, pts[:, 1], "o-", ms=3, color="C0")
+        if threshold is not None:
+            ax.axhline(threshold, color="C3", ls="--", lw=0.9, label="95 % threshold")
+        if p:
+            ax.axvspan(p["lower"] * mult, p["upper"] * mult, color="C2", alpha=0.12, lw=0)
+        x = pts[:, 0] * mult
+        if len(x) and x.min() > 0 and x.max() > 3 * x.min():
+            # the bottom of a free parameter's range stands for zero: the axis starts at 1e-4
+            # of its largest value rather than spanning decades of nothing
+            ax.set_xscale("log")
+            ax.set_xlim(max(x.min(), 1e-4 * x.max()) / 1.5, 1.5 * x.max())
+        if threshold is not None and len(pts) and pts[:, 1].max() > 8 * threshold:
+            ax.set_ylim(min(-0.05 * 8 * threshold, pts[:, 1].min()), 8 * threshold)
+        shown = display_unit(unit)
+        ax.set_xlabel(f"{name} ({shown})" if shown else name)
+        ax.set_ylabel("Δcost above the optimum")
+        ax.legend(fontsize=7)
+    fig.suptitle("profiles (shaded: the 95 % interval)", fontsize=10)
+    fig.tight_layout()
+    return png(fig)
+
+
+def trace(idata) -> bytes:
+    """ArviZ's trace plot of the posterior (each walker a chain)."""
+    import arviz as az
+
+    n = len(idata.posterior.data_vars)
+    with warnings.catch_warnings():  # a short chain's flat walkers: its KDE warns, still drawn
+        warnings.simplefilter("ignore", UserWarning)
+        axes = az.plot_trace(idata, figsize=(10, 1.7 * n), compact=True)
+    fig = np.ravel(axes)[0].figure
+    fig.tight_layout()
+    return png(fig)
+
+
+def pairs(idata) -> bytes:
+    """ArviZ's pair plot of the posterior's kept draws, with the marginals."""
+    import arviz as az
+
+    n = len(idata.posterior.data_vars)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        axes = az.plot_pair(
+            idata,
+            kind="scatter",
+            marginals=True,
+            figsize=(1.9 * n, 1.9 * n),
+            scatter_kwargs={"alpha": 0.3, "s": 3},
+            textsize=8,
+        )
+    return png(np.ravel(axes)[0].figure)
+
+
+def predictive(idata, k: int, title: str) -> bytes:
+    """Recording ``k``'s measured band PSDs against the mean features at the posterior
+    predictive draws (the ``observed_data`` and ``posterior_predictive`` groups)."""
+    draws = np.asarray(idata.posterior_predictive["log10_psd"], dtype=float)
+    draws = draws.reshape(-1, *draws.shape[-2:])[:, k]
+    data = np.asarray(idata.observed_data["log10_psd"], dtype=float)[k]
+    centres = np.asarray(idata.observed_data["band"], dtype=float)
+    fig, ax = _pyplot().subplots(figsize=(8, 3.8))
+    for i, d in enumerate(draws):
+        label = "model mean at a posterior draw" if i == 0 else None
+        ax.plot(centres, 10**d, color="C0", lw=0.8, alpha=0.5, label=label)
+    ax.plot(centres, 10**data, "o", ms=4, color="k", label="measured")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("band centre (Hz)")
+    ax.set_ylabel("band PSD of Δθ* (rad²/Hz)")
+    ax.set_title(f"posterior predictive: {title}", fontsize=10)
+    ax.legend(fontsize=8)
+    return png(fig)
+
+
+def residuals(diagnosis: dict, names: list[str], missed_z: float) -> bytes:
+    """Each recording's standardised band residuals of the identification and with the
+    verdict's effect (or the effect that left the least misfit), from the diagnosis JSON."""
+    centres = np.asarray(diagnosis["band_centers_hz"], dtype=float)
+    base = np.asarray(diagnosis["residuals"], dtype=float)
+    effects = diagnosis.get("effects") or []
+    best = next((e for e in effects if e["name"] == diagnosis.get("verdict")), None)
+    best = best or (effects[0] if effects else None)
+    fig, axes = _pyplot().subplots(len(base), 1, figsize=(8, 3.0 * len(base)), squeeze=False)
+    for k, ax in enumerate(axes[:, 0]):
+        ax.axhspan(-missed_z, missed_z, color="0.92", lw=0)
+        ax.semilogx(centres, base[k], "ko-", ms=3, lw=0.8, label="fitted model")
+        if best is not None:
+            r = np.asarray(best["residuals"], dtype=float)[k]
+            ax.semilogx(centres, r, "s--", ms=3, lw=0.8, color="C2", label=f"+ {best['name']}")
+        ax.axhline(0, color="0.4", lw=0.6)
+        ax.set_ylabel("(measured − model)/σ")
+        ax.set_xlabel("band centre (Hz)")
+        ax.set_title(f"{names[k]}: band residuals (shaded: within ±{missed_z:g} σ)", fontsize=10)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    return png(fig)
