@@ -78,6 +78,27 @@ def _output_options(what: str, plots: str):
     return decorate
 
 
+def _report_option(what: str):
+    """The ``--report FILE`` option of a fitting command: the HTML report of its result."""
+    return click.option(
+        "--report",
+        "report_file",
+        type=click.Path(dir_okay=False, path_type=Path),
+        help=f"Write the HTML report of {what} here (one self-contained file).",
+    )
+
+
+def _write_report(path: Path | None, **documents) -> None:
+    """Write the HTML report of ``documents`` (:func:`rattlefit.report.write_report`'s
+    keywords) to ``path``, when one is given."""
+    if path is None:
+        return
+    from .report import write_report
+
+    write_report(path, **documents)
+    click.echo(f"wrote {path}", err=True)
+
+
 def _prior_option(func):
     """The ``--prior NAME=CENTER:LOG_SD`` option (repeatable) of the fitting commands."""
     return click.option(
@@ -242,11 +263,12 @@ def simulate(**o) -> None:
     is_flag=True,
     help="A rough first look, several times faster, with wider intervals (FitOptions.quick).",
 )
+@_report_option("the fit")
 @_prior_option
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
 @_clean_errors
 def identify(
-    files, output, plot_dir, seed, realisations, starts, drive, quick, priors, quiet
+    files, output, plot_dir, seed, realisations, starts, drive, quick, report_file, priors, quiet
 ) -> None:
     """Fit a, T_b and the viscosity to one recording, or jointly to several of one pair
     (e.g. a backlash sweep; under several lubrications each gets its own a[LUBRICATION])."""
@@ -269,6 +291,7 @@ def identify(
         plot_dir,
         lambda d: plot_fit(result, recordings, d),
     )
+    _write_report(report_file, fit=result.to_json(), recordings=recordings)
 
 
 @main.command()
@@ -292,28 +315,71 @@ def identify(
 @_output_options(
     "the credible intervals and diagnostics", "the trace, pairwise-marginal and predictive plots"
 )
+@_report_option("the posterior and the identification the chain started from")
+@click.option(
+    "--fit",
+    "fit_file",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="identify's JSON (-o) for the --report of a continued chain, whose file does not hold "
+    "the identification; a new chain's report uses the one it starts from.",
+)
 @_prior_option
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
 @_clean_errors
 def sample(
-    files, backend, steps, walkers, discard, seed, quick_fit, output, plot_dir, priors, quiet
+    files,
+    backend,
+    steps,
+    walkers,
+    discard,
+    seed,
+    quick_fit,
+    output,
+    plot_dir,
+    report_file,
+    fit_file,
+    priors,
+    quiet,
 ):
     """Sample the Bayesian posterior of a, T_b, the viscosity and the nuisances (emcee),
-    starting from an identification of the same files."""
+    starting from an identification of the same files. The posterior is also saved in
+    ArviZ's netCDF format beside the chain file (--backend chain.h5 → chain.nc) or, without
+    one, beside the JSON (-o post.json → post.nc)."""
+    from .inference.identify import identify
     from .inference.options import FitOptions
-    from .inference.posterior import SampleOptions
+    from .inference.posterior import SampleOptions, read_context
     from .inference.posterior import sample as run
     from .io.recording import read_recording
     from .report import format_posterior, plot_posterior
+    from .report.inputs import load_json
 
     if discard is not None and discard >= steps:
         raise click.BadParameter(f"must be below --steps ({steps})", param_hint="--discard")
     recordings = [read_recording(f) for f in files]
+    continued = backend is not None and read_context(backend) is not None
+    fit_doc = None
+    if report_file is not None and continued:
+        if fit_file is None:
+            raise click.BadParameter(
+                f"{backend} holds a chain to continue, and a chain file does not hold the "
+                "identification the report shows: give it with --fit FILE (identify -o)",
+                param_hint="--report",
+            )
+        fit_doc = load_json(fit_file, "fit")  # checked before the chain runs
+    elif fit_file is not None:
+        click.echo(
+            "note: --fit is used only for the report of a continued chain; this new chain's "
+            "report shows the identification it starts from",
+            err=True,
+        )
     fit_options = (FitOptions.quick if quick_fit else FitOptions)(seed=seed, priors=_priors(priors))
     options = SampleOptions(
         n_walkers=walkers, n_steps=steps, discard=discard, seed=seed, fit=fit_options
     )
-    post = run(recordings, None, options, backend=backend, progress=_progress(quiet))
+    fit = None
+    if not continued:  # identified here, as sample() would, so that the report can show it
+        fit = identify(recordings, fit_options, progress=_progress(quiet))
+    post = run(recordings, fit, options, backend=backend, progress=_progress(quiet))
     _emit(
         format_posterior(post),
         post.to_json(),
@@ -321,6 +387,21 @@ def sample(
         plot_dir,
         lambda d: plot_posterior(post, d, recordings),
     )
+    beside = backend if backend is not None else output
+    idata = None
+    if beside is not None:
+        idata = post.save_netcdf(beside.with_suffix(".nc"), recordings)
+        click.echo(f"wrote {idata} (ArviZ netCDF)", err=True)
+    elif report_file is not None:
+        idata = post.to_inference_data(recordings)
+    if report_file is not None:
+        _write_report(
+            report_file,
+            fit=fit.to_json() if fit is not None else fit_doc,
+            posterior=post.to_json(),
+            inference_data=idata,
+            recordings=recordings,
+        )
 
 
 @main.command()
@@ -340,10 +421,13 @@ def sample(
     help="Gauss–Newton iterations per effect.",
 )
 @_output_options("the diagnosis", "the band residuals with and without each effect")
+@_report_option("the diagnosis and the identification it starts from")
 @_prior_option
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
 @_clean_errors
-def diagnose(files, effects, seed, quick_fit, iterations, output, plot_dir, priors, quiet):
+def diagnose(
+    files, effects, seed, quick_fit, iterations, output, plot_dir, report_file, priors, quiet
+):
     """Where the model misses the recordings, which unmodelled effect explains it, and how
     much of the misfit it removes (each effect fitted on top of an identification)."""
     from .diagnosis.diagnose import DiagnoseOptions
@@ -369,6 +453,103 @@ def diagnose(files, effects, seed, quick_fit, iterations, output, plot_dir, prio
     _emit(
         format_diagnosis(diag), diag.to_json(), output, plot_dir, lambda d: plot_diagnosis(diag, d)
     )
+    _write_report(
+        report_file,
+        fit=diag.baseline.to_json(),
+        diagnosis=diag.to_json(),
+        recordings=recordings,
+    )
+
+
+@main.command()
+@click.option(
+    "--fit",
+    "fit_file",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="identify's JSON (-o).",
+)
+@click.option(
+    "--posterior",
+    "posterior_file",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="sample's JSON (-o).",
+)
+@click.option(
+    "--netcdf",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="sample's ArviZ netCDF file, for the trace, pair and predictive plots [default: the "
+    ".nc beside --posterior or beside its chain file, when there is one].",
+)
+@click.option(
+    "--diagnosis",
+    "diagnosis_file",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="diagnose's JSON (-o).",
+)
+@click.option(
+    "--recording",
+    "recording_files",
+    multiple=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="The fitted recordings, in the fit's order (repeatable) [default: the paths the fit "
+    "names, also looked for beside --fit].",
+)
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path))
+@_clean_errors
+def report(fit_file, posterior_file, netcdf, diagnosis_file, recording_files, output) -> None:
+    """Write one self-contained HTML report (figures inside, nothing fetched) of an
+    identification and, when given, its posterior and diagnosis."""
+    from .io.recording import read_recording
+    from .report import write_report
+    from .report.inputs import load_json
+
+    fit = load_json(fit_file, "fit")
+    posterior = None if posterior_file is None else load_json(posterior_file, "posterior")
+    diagnosis = None if diagnosis_file is None else load_json(diagnosis_file, "diagnosis")
+    if netcdf is None and posterior is not None:
+        netcdf = _netcdf_beside(posterior_file, posterior)
+        if netcdf is not None:
+            click.echo(f"using {netcdf} (ArviZ netCDF beside the posterior)", err=True)
+    if recording_files:
+        recordings = [read_recording(f) for f in recording_files]
+    else:
+        recordings = [read_recording(f) for f in _fit_recording_paths(fit, fit_file)]
+    write_report(
+        output,
+        fit=fit,
+        posterior=posterior,
+        inference_data=netcdf,
+        diagnosis=diagnosis,
+        recordings=recordings,
+    )
+    click.echo(f"wrote {output}", err=True)
+
+
+def _netcdf_beside(posterior_file: Path, posterior: dict) -> Path | None:
+    """The netCDF file ``sample`` wrote beside the posterior's JSON or its chain file."""
+    candidates = [posterior_file.with_suffix(".nc")]
+    backend = posterior["sampler"].get("backend")
+    if backend:
+        candidates.append(Path(backend).with_suffix(".nc"))
+    return next((c for c in candidates if c.is_file()), None)
+
+
+def _fit_recording_paths(fit: dict, fit_file: Path) -> list[Path]:
+    """The recordings the fit names, a relative one also looked for beside the fit's JSON;
+    raises naming one found in neither place."""
+    out = []
+    for name in fit["fit"]["recordings"]:
+        path = Path(name)
+        if not path.is_file() and not path.is_absolute() and (fit_file.parent / path).is_file():
+            path = fit_file.parent / path
+        if not path.is_file():
+            raise RattlefitError(
+                f"{name}: recording named in {fit_file} (fit/recordings) not found; give it "
+                "with --recording FILE"
+            )
+        out.append(path)
+    return out
 
 
 if __name__ == "__main__":  # pragma: no cover
