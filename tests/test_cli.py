@@ -209,3 +209,78 @@ def test_sample_refuses_a_foreign_backend_and_keeps_it(tmp_path):
     assert not out.exists()
     with h5py.File(backend, "r") as f:
         np.testing.assert_array_equal(f["x"][:], np.arange(4))
+
+
+@pytest.mark.parametrize(
+    ("content", "problem"),
+    [
+        (None, "no such file"),
+        ('{"parameters": {', "not valid JSON (line 1"),
+        ('{"chi2": 3}', "parameters: missing; not the output of rattlefit identify -o"),
+    ],
+)
+def test_report_with_a_bad_fit_file_is_one_clean_error(tmp_path, content, problem):
+    fit = tmp_path / "fit.json"
+    if content is not None:
+        fit.write_text(content)
+    out = tmp_path / "report.html"
+    proc = subprocess.run(
+        [sys.executable, "-m", "rattlefit.cli", "report", "--fit", str(fit), "-o", str(out)],
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.startswith(f"rattlefit: error: {fit}: {problem}")
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+    assert not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == (["fit.json"] if content else [])
+
+
+def test_report_finds_recordings_beside_the_fit_and_writes_html(tmp_path):
+    # a fit naming its recording by a relative path, the JSON beside the recording
+    shutil.copy(DATA / "pairII_boundary_65.6_20pct_16Hz.h5", tmp_path / "r.h5")
+    f = np.geomspace(5.0, 4000.0, 30)
+    measured = (-6.0 - 1.5 * np.log10(f / 5.0)).tolist()
+    doc = {
+        "parameters": {
+            "a": {
+                "unit": "m",
+                "estimate": 8.5e-5,
+                "lower": 7e-5,
+                "upper": 1e-4,
+                "identified": True,
+                "bound": None,
+            },
+        },
+        "fit": {"chi2": 30.0, "dof": 28, "p_value": 0.36, "recordings": ["r.h5"]},
+        "spectra": {
+            "band_centers_hz": f.tolist(),
+            "measured": [measured],
+            "fitted": [measured],
+            "sigma": [[0.1] * 30],
+        },
+    }
+    (tmp_path / "fit.json").write_text(json.dumps(doc))
+    out = tmp_path / "out" / "report.html"
+    result = CliRunner().invoke(
+        main, ["report", "--fit", str(tmp_path / "fit.json"), "-o", str(out)]
+    )
+    assert result.exit_code == 0, result.output
+    html = out.read_text(encoding="utf-8")
+    assert html.startswith("<!DOCTYPE html>") and 'data-param="a"' in html
+    assert "r.h5" in html
+    # a recording named on the command line instead; a missing one is named
+    result = CliRunner().invoke(
+        main,
+        [
+            "report",
+            "--fit",
+            str(tmp_path / "fit.json"),
+            "--recording",
+            str(tmp_path / "gone.h5"),
+            "-o",
+            str(tmp_path / "x.html"),
+        ],
+    )
+    assert result.exit_code == 2 and "gone.h5" in result.output
+    assert not (tmp_path / "x.html").exists()

@@ -1,6 +1,11 @@
 """The identification table: what a person reads first."""
 
+import base64
+import json
 import math
+import subprocess
+from html.parser import HTMLParser
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -114,3 +119,303 @@ def test_the_table_says_what_set_the_profile_threshold(mc, jitter, source):
     assert 3.84 + 1.645 * _allowance(line) == pytest.approx(threshold, abs=0.1)
     assert res.to_json()["fit"]["profile"]["threshold"] == threshold
     assert "95 % intervals" not in format_table(_result(30.0, 28))  # nothing to say
+
+
+# -- the HTML report ---------------------------------------------------------------------------
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+BOUNDARY = DATA / "pairII_boundary_65.6_20pct_16Hz.h5"
+CHROMIUM = Path("/usr/bin/chromium")
+MM = {"m": 1e3}  # the report shows lengths in mm, everything else in SI
+
+
+class _Page(HTMLParser):
+    """What a test reads from a report: images, links, the parameter rows and the text."""
+
+    def __init__(self):
+        super().__init__()
+        self.images, self.links, self.rows, self.text = [], [], {}, []
+        self._row = None
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag == "img":
+            self.images.append(a.get("src", ""))
+        for key in ("src", "href", "action", "poster"):
+            if key in a:
+                self.links.append(a[key])
+        if tag == "tr" and "data-param" in a:
+            self._row = a["data-param"]
+            self.rows[self._row] = {"attrs": a, "text": ""}
+        if tag in ("script", "link", "iframe", "object", "embed"):
+            self.links.append(f"<{tag}>")
+
+    def handle_endtag(self, tag):
+        if tag == "tr":
+            self._row = None
+
+    def handle_data(self, data):
+        self.text.append(data)
+        if self._row is not None:
+            self.rows[self._row]["text"] += data + "|"
+
+
+def _parse(html: str) -> _Page:
+    page = _Page()
+    page.feed(html)
+    page.close()
+    return page
+
+
+def _g4(value, unit):
+    return f"{value * MM.get(unit, 1.0):.4g}"
+
+
+def _check_self_contained(html: str) -> _Page:
+    page = _parse(html)
+    assert page.images, "the report has no figure"
+    for src in page.images:
+        assert src.startswith("data:image/png;base64,"), src[:60]
+        png = base64.b64decode(src.split(",", 1)[1], validate=True)
+        assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 1000
+    assert not [x for x in page.links if not x.startswith("data:")], page.links
+    for marker in ("http://", "https://", 'src="//', 'href="//', "url(", "@import"):
+        assert marker not in html, marker
+    return page
+
+
+def _check_parameters(page: _Page, fit: dict) -> None:
+    """Every parameter of the JSON is a row whose numbers are the JSON's, as shown."""
+    assert list(page.rows) == list(fit["parameters"])
+    for name, p in fit["parameters"].items():
+        row = page.rows[name]
+        assert float(row["attrs"]["data-lower"]) == p["lower"]
+        assert float(row["attrs"]["data-upper"]) == p["upper"]
+        if p["estimate"] is not None:
+            assert float(row["attrs"]["data-estimate"]) == p["estimate"]
+            assert f"|{_g4(p['estimate'], p['unit'])}|" in row["text"]
+        assert f"[{_g4(p['lower'], p['unit'])}, {_g4(p['upper'], p['unit'])}]" in row["text"]
+        if p["bound"] == "lower":
+            assert f"≥ {_g4(p['lower'], p['unit'])}" in row["text"]
+        if p["bound"] == "upper":
+            assert f"≤ {_g4(p['upper'], p['unit'])}" in row["text"]
+
+
+@pytest.fixture(scope="module")
+def bundled_fits():
+    """identify's JSON of each bundled recording (quick, seeded): the report's real inputs."""
+    import rattlefit as rf
+
+    out = {}
+    for path in sorted(DATA.glob("*.h5")):
+        rec = rf.read_recording(path)
+        fit = rf.identify([rec], FitOptions.quick(seed=0, n_starts=4))
+        out[path.name] = (json.loads(json.dumps(fit.to_json())), rec)
+    return out
+
+
+def test_reports_of_the_bundled_recordings(bundled_fits, tmp_path):
+    from rattlefit.report import html_report, write_report
+
+    assert len(bundled_fits) == 3
+    for name, (fit, rec) in bundled_fits.items():
+        html = html_report(fit=fit, recordings=[rec])
+        page = _check_self_contained(html)
+        _check_parameters(page, fit)
+        # spectrum, time history and profiles; the recording's summary as info prints it
+        assert len(page.images) == 3
+        text = " ".join(page.text)
+        assert name in text and "IGR" in text and "backlash" in text
+        assert f"χ² = {fit['fit']['chi2']:.1f}" in text
+        lub = rec.operating.lubrication
+        a = page.rows["a"]["text"]
+        if lub == "boundary":
+            assert "μ·a³/h_min²" in a  # the film trades against h_min and μ
+        if lub == "oil_jet" and fit["parameters"]["a"]["bound"] == "lower":
+            assert "saturates" in a
+        # the default: the recordings read from the paths the fit names; atomic write
+        out = write_report(tmp_path / f"{name}.html", fit=fit)
+        assert out.read_text(encoding="utf-8") == html
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+def _handmade_fit(recording=BOUNDARY) -> dict:
+    """A fit document written by hand (not by identify): three parameters, 30 bands."""
+    f = np.geomspace(5.0, 4000.0, 30)
+    measured = -6.0 - 1.5 * np.log10(f / 5.0)
+    p = {
+        "a": ("m", 8.5e-5, 7.1e-5, 9.9e-5, True, None),
+        "drag_torque": ("N m", None, 0.0, 0.0437, False, "upper"),
+        "viscosity": ("Pa s", None, 0.3, 0.81, False, "prior"),
+    }
+    keys = ("unit", "estimate", "lower", "upper", "identified", "bound")
+    return {
+        "parameters": {n: {"name": n, **dict(zip(keys, v, strict=True))} for n, v in p.items()},
+        "fit": {
+            "chi2": 31.25,
+            "dof": 28,
+            "p_value": 0.31,
+            "poor_fit": False,
+            "success": True,
+            "seed": 3,
+            "recordings": [str(recording)],
+            "profile": {"threshold": 6.5},
+            "profiles": {"a": [[5e-5, 20.0], [8.5e-5, 0.0], [1.2e-4, 15.0]]},
+        },
+        "spectra": {
+            "band_centers_hz": f.tolist(),
+            "measured": [measured.tolist()],
+            "fitted": [(measured + 0.05).tolist()],
+            "sigma": [np.full(30, 0.1).tolist()],
+        },
+    }
+
+
+def _handmade_posterior():
+    """A short chain (reliable False) as sample's JSON and as an ArviZ InferenceData."""
+    import arviz as az
+
+    rng = np.random.default_rng(1)
+    names = {"a": "m", "drag_torque": "N m", "viscosity": "Pa s"}
+    centre = {"a": 8.5e-5, "drag_torque": 0.02, "viscosity": 0.5}
+    draws = {n: centre[n] * np.exp(0.1 * rng.standard_normal((4, 50))) for n in names}
+    bands = np.geomspace(5.0, 4000.0, 30)
+    observed = -6.0 - 1.5 * np.log10(bands / 5.0)
+    idata = az.from_dict(
+        posterior=draws,
+        observed_data={"log10_psd": observed[None]},
+        posterior_predictive={
+            "log10_psd": (observed + 0.1 * rng.standard_normal((8, 30)))[None, :, None]
+        },
+        coords={"band": bands, "recording": [0]},
+        dims={"log10_psd": ["recording", "band"]},
+    )
+    doc = {
+        "parameters": {
+            n: {
+                "median": float(np.median(v)),
+                "lower": float(np.percentile(v, 2.5)),
+                "upper": float(np.percentile(v, 97.5)),
+                "unit": names[n],
+            }
+            for n, v in draws.items()
+        },
+        "sampler": {
+            "walkers": 4,
+            "steps": 75,
+            "discard": 25,
+            "acceptance_mean": 0.3,
+            "autocorr_time": {n: 9.0 for n in names},
+            "ess": {n: 22.2 for n in names},
+            "reliable": False,
+            "seed": 0,
+            "recordings": [str(BOUNDARY)],
+        },
+    }
+    return doc, idata
+
+
+def test_report_with_a_posterior_shows_its_plots_and_warns_of_a_short_chain(tmp_path):
+    from rattlefit.report import html_report
+
+    fit = _handmade_fit()
+    post, idata = _handmade_posterior()
+    nc = tmp_path / "chain.nc"
+    idata.to_netcdf(str(nc))
+    html = html_report(fit=fit, posterior=post, inference_data=nc)
+    page = _check_self_contained(html)
+    _check_parameters(page, fit)
+    text = " ".join(page.text)
+    assert "Short chain" in text and "22" in text  # the ESS
+    # spectrum, time history, profiles + trace, pairs, posterior predictive
+    assert len(page.images) == 6
+    post["sampler"]["reliable"] = True
+    assert "Short chain" not in html_report(fit=fit, posterior=post)
+
+
+def test_report_with_a_diagnosis_gives_verdict_misfit_and_missed_bands():
+    from rattlefit.report import html_report
+
+    fit = _handmade_fit()
+    residuals = np.zeros((1, 30))
+    residuals[0, 4] = 4.2
+    diag = {
+        "verdict": "drive_ripple",
+        "baseline": {"chi2": 80.0, "dof": 28},
+        "band_centers_hz": fit["spectra"]["band_centers_hz"],
+        "residuals": residuals.tolist(),
+        "missed_bands": [{"recording": 0, "band_hz": [12.0, 14.5], "z": 4.2}],
+        "effects": [
+            {
+                "name": "drive_ripple",
+                "chi2_without": 80.0,
+                "chi2_with": 33.5,
+                "gap_closed": 0.9,
+                "p_value": 1e-4,
+                "supported": True,
+                "parameters": {"amplitude": {"value": 30.0, "unit": "rad/s²"}},
+                "residuals": np.zeros((1, 30)).tolist(),
+            }
+        ],
+        "warnings": [],
+        "recordings": [str(BOUNDARY)],
+    }
+    page = _check_self_contained(html_report(fit=fit, diagnosis=diag))
+    text = " ".join(page.text)
+    assert "drive_ripple explains the gap: χ² 80.0 → 33.5, 90 % of the excess misfit" in text
+    assert "12.0–14.5 Hz, z = +4.2" in text
+
+
+def test_report_refuses_bad_inputs_naming_them(tmp_path):
+    from rattlefit.errors import RattlefitError
+    from rattlefit.report import write_report
+
+    out = tmp_path / "r.html"
+    with pytest.raises(RattlefitError, match=r"missing\.h5: recording named in the fit"):
+        write_report(out, fit=_handmade_fit(tmp_path / "missing.h5"))
+    bad = _handmade_fit()
+    del bad["spectra"]["sigma"]
+    with pytest.raises(RattlefitError, match="fit: spectra/sigma: missing"):
+        write_report(out, fit=bad)
+    post, _ = _handmade_posterior()
+    post["sampler"]["recordings"] = ["elsewhere/other.h5"]
+    with pytest.raises(RattlefitError, match=r"posterior: made on other\.h5"):
+        write_report(out, fit=_handmade_fit(), posterior=post)
+    with pytest.raises(RattlefitError, match=r"nothing\.nc: no such file"):
+        write_report(out, fit=_handmade_fit(), inference_data=tmp_path / "nothing.nc")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_report_renders_in_a_headless_browser(tmp_path):
+    if not CHROMIUM.exists():
+        pytest.skip(f"no headless browser at {CHROMIUM} (apt-get install chromium)")
+    from PIL import Image
+
+    from rattlefit.report import write_report
+
+    post, idata = _handmade_posterior()
+    page = write_report(
+        tmp_path / "report.html", fit=_handmade_fit(), posterior=post, inference_data=idata
+    )
+    shot = tmp_path / "shot.png"
+    cmd = [
+        str(CHROMIUM),
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        "--no-first-run",
+        f"--user-data-dir={tmp_path / 'profile'}",
+        f"--screenshot={shot}",
+        "--window-size=1200,3000",
+        page.as_uri(),
+    ]
+    subprocess.run(cmd, capture_output=True, timeout=120, check=False)
+    assert shot.is_file(), "the browser wrote no screenshot"
+    pixels = np.asarray(Image.open(shot).convert("L"), dtype=float)
+    assert pixels.shape == (3000, 1200)
+    # not blank: dark text and figure lines on a light page, over much of its height
+    dark_rows = np.flatnonzero((pixels < 128).any(axis=1))
+    assert pixels.std() > 10 and dark_rows.size > 500 and dark_rows.max() > 1500
