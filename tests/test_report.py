@@ -203,13 +203,20 @@ def _check_parameters(page: _Page, fit: dict) -> None:
 
 @pytest.fixture(scope="module")
 def bundled_fits():
-    """identify's JSON of each bundled recording (quick, seeded): the report's real inputs."""
+    """identify's JSON of each bundled recording (seeded, cheaper than quick): real inputs."""
     import rattlefit as rf
 
     out = {}
     for path in sorted(DATA.glob("*.h5")):
         rec = rf.read_recording(path)
-        fit = rf.identify([rec], FitOptions.quick(seed=0, n_starts=4))
+        cheap = FitOptions.quick(
+            seed=0,
+            n_starts=2,
+            max_iterations=1,
+            n_noise_realisations=4,
+            n_covariance_realisations=4,
+        )  # about 15 s a recording: real fits, profiles and intervals, rough optima
+        fit = rf.identify([rec], cheap)
         out[path.name] = (json.loads(json.dumps(fit.to_json())), rec)
     return out
 
