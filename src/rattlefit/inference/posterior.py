@@ -459,10 +459,18 @@ def _context_of(fit: FitResult, recordings: Sequence[Recording], seed: int) -> C
     )
 
 
-def _target(recordings: Sequence[Recording], ctx: ChainContext, path: Path | None):
-    """The fit's problem rebuilt from ``recordings`` and the chain's :class:`LogPosterior`;
-    raises when the recordings are not the chain's."""
-    problem, _, _ = problem_from(recordings, ctx.fit_options)
+def _target(
+    recordings: Sequence[Recording],
+    ctx: ChainContext,
+    path: Path | None,
+    fit: FitResult | None = None,
+):
+    """The fit's problem (``fit``'s own when it ran in this process, else rebuilt from
+    ``recordings``) and the chain's :class:`LogPosterior`; raises when the recordings are not
+    the chain's."""
+    problem = fit.problem_for(recordings) if fit is not None else None
+    if problem is None:
+        problem, _, _ = problem_from(recordings, ctx.fit_options)
     data = np.asarray(problem.data)
     if data.shape != ctx.data.shape or not np.allclose(data, ctx.data, rtol=0, atol=1e-9):
         raise RattlefitError(
@@ -518,7 +526,7 @@ def sample(
             say("no fit given: identifying first …")
             fit = identify(recordings, options.fit, progress=progress)
         ctx = _context_of(fit, recordings, options.seed)
-    problem, target = _target(recordings, ctx, path)
+    problem, target = _target(recordings, ctx, path, None if resumed else fit)
     specs = problem.specs
     hdf = None if path is None else _chain_backend(path, ctx, resumed)
     say(f"{ctx.fit_options.n_realisations} simulated realisations per point")
