@@ -1,0 +1,92 @@
+"""Model-free evidence from the angle and time domains, and the effect each test points to.
+
+The band spectrum cannot hold a once-per-revolution change of the play, and an effect fitted
+to it can absorb a model-form difference that is no effect at all. The tests here read the
+recording alone (:mod:`rattlefit.features.orders`, :mod:`rattlefit.features.drift`): where
+the flanks were met against each wheel's angle and tooth, and whether the rattle's
+statistics trend over the recording. They need no simulation, so they hold on data from any
+rig. Each test points to one effect of the catalogue.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+from ..features.drift import drift_evidence
+from ..features.orders import (
+    AngleTest,
+    contact_events,
+    mesh_order_evidence,
+    runout_evidence,
+    tooth_evidence,
+)
+from ..io.recording import Recording
+
+#: The effect each test points to, by the test name's first part.
+POINTS_TO = {
+    "runout": "runout",
+    "mesh_order": "tooth_errors",
+    "tooth": "tooth_defect",
+    "drift": "viscosity_drift",
+}
+#: Smallest pattern worth naming, as a gap error on the pitch circle (m): below about 2 µm
+#: of run-out or a tooth's deviation, gear quality classes do not tell gears apart. The
+#: drift test has no floor (its statistics are logarithms and shares).
+RELEVANT_SIZE_M = {"runout": 2e-6, "mesh_order": 1e-6, "tooth": 2e-6}
+
+
+@dataclasses.dataclass(frozen=True)
+class Finding:
+    """One model-free test of one recording.
+
+    recording : index of the recording; test : the test
+    (:class:`~rattlefit.features.orders.AngleTest`); effect : the effect it points to;
+    level : the p-value below which it counts; significant : p below ``level`` and the
+    pattern at least :data:`RELEVANT_SIZE_M`.
+    """
+
+    recording: int
+    test: AngleTest
+    effect: str
+    level: float
+    significant: bool
+
+    def as_dict(self) -> dict:
+        return {
+            "recording": self.recording,
+            "effect": self.effect,
+            "level": self.level,
+            "significant": self.significant,
+            **self.test.as_dict(),
+        }
+
+
+def recording_tests(recording: Recording) -> list[AngleTest]:
+    """Every model-free test of one recording: run-out of each wheel, the mesh order, a
+    local tooth defect on each wheel, and drift."""
+    events = contact_events(recording)
+    return [
+        *runout_evidence(recording, events),
+        mesh_order_evidence(recording, events),
+        *tooth_evidence(recording, events),
+        drift_evidence(recording),
+    ]
+
+
+def kind_of(test: AngleTest) -> str:
+    """The test's family: its name up to the first dot (``"runout.primary"`` → ``"runout"``)."""
+    return test.name.split(".", 1)[0]
+
+
+def findings(recordings: Sequence[Recording], significance: float) -> list[Finding]:
+    """Every test of every recording, each judged at ``significance`` over the number of
+    tests (Bonferroni) and against :data:`RELEVANT_SIZE_M`."""
+    tests = [(k, t) for k, rec in enumerate(recordings) for t in recording_tests(rec)]
+    level = significance / max(len(tests), 1)
+    out = []
+    for k, test in tests:
+        kind = kind_of(test)
+        big = test.amplitude >= RELEVANT_SIZE_M.get(kind, 0.0)
+        out.append(Finding(k, test, POINTS_TO[kind], level, bool(test.p_value < level and big)))
+    return out

@@ -1,0 +1,389 @@
+"""Angle-domain evidence: where the flanks are, against each wheel's angle and tooth.
+
+The encoders give both wheels' angles exactly, so a recording says, without any model, where
+the two flanks were met while each tooth of each wheel was in mesh. On a rig without
+geometric errors the flanks sit at ±backlash/2 of Δθ* whatever the angles; mounting run-out
+moves both flanks together once per revolution of a wheel, a transmission error once per
+tooth, and a damaged tooth moves them while that tooth is in mesh.
+
+:func:`contact_events` finds the flank contacts of a recording; :func:`flank_regression`
+fits their positions with a constant per flank, the drive-cycle harmonics per flank (impact
+depth varies over the drive cycle) and sinusoids of each wheel's angle shared by both flanks;
+:func:`runout_evidence`, :func:`mesh_order_evidence` and :func:`tooth_evidence` test those
+terms (Wald tests with a covariance that is robust to correlation within a contact episode).
+Positions are in Δθ* (rad of the primary shaft); the flank moves by ``−g/r1`` for a gap error
+``g`` (m on the pitch circle), since ``q = −r1 Δθ*``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+from scipy import stats
+
+from ..io.recording import Recording
+
+#: A sample belongs to a flank contact when it lies within this share of the play of the
+#: flank's robust extreme (run-out and defects move the flank by a few per cent of the play).
+CONTACT_BAND = 0.2
+#: Contact episodes are cut into pieces of at most this share of a driving-wheel revolution,
+#: so that a long dwell on a moving flank gives one observation per angle it passes.
+PIECE_REVOLUTION = 1.0 / 72.0
+#: Harmonics of the drive frequency fitted per flank (the impact depth follows the drive).
+DRIVE_HARMONICS = 3
+#: Observations further than this many robust standard deviations from the fit are dropped
+#: (turning points short of the flank, e.g. in a thick oil film), and the fit repeated.
+OUTLIER_Z = 4.0
+#: Decoy orders behind each inflation estimate, and their clearance from the orders where
+#: something is expected, in order resolutions (1 / revolutions recorded).
+DECOY_COUNT = 15
+DECOY_CLEARANCE = 1.5
+
+
+@dataclasses.dataclass(frozen=True)
+class ContactEvents:
+    """Flank contacts of a recording, one row per contact piece.
+
+    position : Δθ* at the contact (rad), the flank's extreme value within the piece.
+    flank : +1 (upper flank, positive Δθ*) or −1 (lower flank).
+    episode : index of the contact episode the piece belongs to (a run of contact samples).
+    time : s; theta_primary, theta_secondary : the wheels' angles at the contact (rad).
+    """
+
+    position: np.ndarray
+    flank: np.ndarray
+    episode: np.ndarray
+    time: np.ndarray
+    theta_primary: np.ndarray
+    theta_secondary: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.position.size)
+
+
+def contact_runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Start and stop indices of the runs of True in ``mask``."""
+    padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
+    edges = np.flatnonzero(np.diff(padded))
+    return list(zip(edges[::2], edges[1::2], strict=True))
+
+
+def contact_events(recording: Recording) -> ContactEvents:
+    """The flank contacts of ``recording``: each run of samples within
+    :data:`CONTACT_BAND` of the play from a flank's robust extreme, cut into pieces of at
+    most :data:`PIECE_REVOLUTION` of a driving-wheel revolution, each represented by its
+    extreme sample."""
+    d = recording.relative_motion
+    lo, hi = np.percentile(d, [0.1, 99.9])
+    margin = CONTACT_BAND * (hi - lo)
+    speed = recording.operating.drive_mean_speed_rad_s
+    piece = max(1, round(PIECE_REVOLUTION * 2 * math.pi / speed * recording.sample_rate_hz))
+    rows = []
+    for flank, mask in ((1, d > hi - margin), (-1, d < lo + margin)):
+        for episode, (start, stop) in enumerate(contact_runs(mask)):
+            for s in range(start, stop, piece):
+                seg = flank * d[s : min(stop, s + piece)]
+                k = s + int(np.argmax(seg))
+                rows.append((d[k], flank, flank * (episode + 1), k))
+    rows.sort(key=lambda r: r[3])
+    pos, side, episode, k = (
+        (np.asarray(c) for c in zip(*rows, strict=True)) if rows else [np.zeros(0)] * 4
+    )
+    k = k.astype(int)
+    return ContactEvents(
+        position=pos.astype(float),
+        flank=side.astype(int),
+        episode=episode.astype(int),
+        time=k / recording.sample_rate_hz,
+        theta_primary=recording.theta_primary[k],
+        theta_secondary=recording.theta_secondary[k],
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class FlankFit:
+    """A least-squares fit of the contact positions (:func:`flank_regression`).
+
+    coef : (P,) coefficients; covariance : (P, P) cluster-robust covariance (clusters: the
+    contact episodes); columns : (P,) column names; kept : (n,) bool, observations used;
+    scale : robust standard deviation of the residuals (rad).
+    """
+
+    coef: np.ndarray
+    covariance: np.ndarray
+    columns: tuple[str, ...]
+    kept: np.ndarray
+    scale: float
+
+    def block(self, prefix: str) -> np.ndarray:
+        """Indices of the columns whose names start with ``prefix``."""
+        return np.array([i for i, c in enumerate(self.columns) if c.startswith(prefix)], int)
+
+    def wald(self, prefix: str) -> tuple[float, int]:
+        """Wald χ² of the columns starting with ``prefix`` being zero, and its dof."""
+        i = self.block(prefix)
+        b = self.coef[i]
+        return float(b @ np.linalg.solve(self.covariance[np.ix_(i, i)], b)), int(i.size)
+
+
+def design(events: ContactEvents, recording: Recording, terms: dict[str, np.ndarray]):
+    """Design matrix of the flank fit: a constant and :data:`DRIVE_HARMONICS` drive-cycle
+    harmonics per flank, then each of ``terms`` (name → (n,) column) shared by both flanks."""
+    phase = 2 * math.pi * recording.operating.drive_frequency_hz * events.time
+    cols, names = [], []
+    for flank, tag in ((1, "upper"), (-1, "lower")):
+        on = (events.flank == flank).astype(float)
+        cols.append(on)
+        names.append(f"offset.{tag}")
+        for h in np.arange(1, 2 * DRIVE_HARMONICS + 1) / 2:
+            cols += [on * np.cos(h * phase), on * np.sin(h * phase)]
+            names += [f"drive.{tag}.cos{h}", f"drive.{tag}.sin{h}"]
+    for name, col in terms.items():
+        cols.append(col)
+        names.append(name)
+    return np.stack(cols, axis=1), tuple(names)
+
+
+def robust_scale(residuals: np.ndarray) -> float:
+    """1.4826 × the median absolute deviation (σ of a normal sample)."""
+    return float(1.4826 * np.median(np.abs(residuals - np.median(residuals))))
+
+
+def cluster_covariance(x: np.ndarray, residuals: np.ndarray, clusters: np.ndarray) -> np.ndarray:
+    """Cluster-robust (sandwich) covariance of least-squares coefficients, with the usual
+    small-sample factor G/(G−1)·(n−1)/(n−P)."""
+    n, p = x.shape
+    bread = np.linalg.pinv(x.T @ x)
+    groups = np.unique(clusters)
+    meat = np.zeros((p, p))
+    for g in groups:
+        s = x[clusters == g].T @ residuals[clusters == g]
+        meat += np.outer(s, s)
+    g = groups.size
+    factor = g / max(g - 1, 1) * (n - 1) / max(n - p, 1)
+    return factor * bread @ meat @ bread
+
+
+def flank_regression(
+    events: ContactEvents, recording: Recording, terms: dict[str, np.ndarray]
+) -> FlankFit:
+    """Fit the flanks' positions with :func:`design` (``terms`` shared by both flanks).
+
+    A flank bounds the motion: contact pieces lie on it (up to quantisation and the contact's
+    deflection, outwards), turning points short of it lie inside. The fit therefore keeps the
+    observations within :data:`OUTLIER_Z` standard deviations of it, the deviation estimated
+    from the outward residuals alone, and repeats until the kept set settles: an envelope.
+    """
+    x, names = design(events, recording, terms)
+    y = events.position
+    kept = np.ones(y.size, bool)
+    for _ in range(30):
+        coef, *_ = np.linalg.lstsq(x[kept], y[kept], rcond=None)
+        outward = events.flank * (y - x @ coef)
+        out = outward[kept & (outward > 0)]
+        scale = max(float(np.sqrt(np.mean(out**2))) if out.size else 0.0, 1e-12)
+        new = np.abs(outward) <= OUTLIER_Z * scale
+        if np.array_equal(new, kept) or new.sum() <= x.shape[1]:
+            break
+        kept = new
+    res = y - x @ coef
+    cov = cluster_covariance(x[kept], res[kept], events.episode[kept])
+    return FlankFit(coef, cov, names, kept, scale)
+
+
+def wheel_terms(events: ContactEvents, order: float = 1.0, *, wheels=("primary", "secondary")):
+    """Sinusoids of ``order`` × each wheel's angle: ``"<wheel>.shift.cos|sin"`` move both
+    flanks alike (a transmission error), ``"<wheel>.play.cos|sin"`` move them apart (a
+    centre-distance change, which widens and narrows the play)."""
+    out = {}
+    for wheel in wheels:
+        theta = order * getattr(events, f"theta_{wheel}")
+        c, s = np.cos(theta), np.sin(theta)
+        out |= {f"{wheel}.shift.cos": c, f"{wheel}.shift.sin": s}
+        out |= {f"{wheel}.play.cos": events.flank * c, f"{wheel}.play.sin": events.flank * s}
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class AngleTest:
+    """One angle-domain test of a recording.
+
+    name : what is tested (e.g. ``"runout.primary"``); chi2, dof, p_value : its Wald test;
+    amplitude, amplitude_sd : the size of the pattern as a gap error on the pitch circle (m)
+    and its standard error; detail : further numbers (e.g. the phase, the worst tooth).
+    """
+
+    name: str
+    chi2: float
+    dof: int
+    p_value: float
+    amplitude: float
+    amplitude_sd: float
+    detail: dict = dataclasses.field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def pair_amplitude(fit: FlankFit, prefix: str) -> tuple[float, float, float]:
+    """Amplitude (rad of Δθ*), its standard error and phase (rad) of the sinusoid whose
+    ``cos`` and ``sin`` columns are ``prefix + "cos"`` and ``prefix + "sin"``."""
+    i = np.array([fit.columns.index(prefix + "cos"), fit.columns.index(prefix + "sin")])
+    c, s = fit.coef[i]
+    amp = math.hypot(c, s)
+    grad = np.array([c, s]) / max(amp, 1e-300)
+    sd = math.sqrt(max(float(grad @ fit.covariance[np.ix_(i, i)] @ grad), 0.0))
+    return amp, sd, math.atan2(c, s)
+
+
+def sinusoid_test(fit: FlankFit, prefix: str, name: str, r1: float) -> AngleTest:
+    """The Wald test of every column of ``fit`` starting with ``prefix`` (cos/sin pairs),
+    the largest pair's amplitude as a gap error on the pitch circle (m), and each pair's
+    amplitude and phase in ``detail``."""
+    chi2, dof = fit.wald(prefix)
+    pairs = sorted(
+        {c[: -len("cos")] for c in fit.columns if c.startswith(prefix) and c.endswith("cos")}
+    )
+    detail, best = {}, (0.0, 0.0)
+    for pair in pairs:
+        amp, sd, phase = pair_amplitude(fit, pair)
+        key = pair[len(prefix) :].strip(".") or "amplitude"
+        detail[f"{key}_m"], detail[f"{key}_sd_m"], detail[f"{key}_phase_rad"] = (
+            r1 * amp,
+            r1 * sd,
+            phase,
+        )
+        best = max(best, (amp, sd))
+    return AngleTest(
+        name=name,
+        chi2=chi2,
+        dof=dof,
+        p_value=float(stats.chi2.sf(chi2, dof)),
+        amplitude=r1 * best[0],
+        amplitude_sd=r1 * best[1],
+        detail=detail,
+    )
+
+
+def pitch_radius_driving(recording: Recording) -> float:
+    """r1 of the recording's driving wheel, m."""
+    return 0.5e-3 * recording.gear_pair.pitch_diameter_driving_mm
+
+
+def decoy_orders(recording: Recording, wheel: str, count: int = DECOY_COUNT) -> np.ndarray:
+    """``count`` orders of ``wheel``'s angle at which nothing is expected: between 0.5 and
+    3.5, at least :data:`DECOY_CLEARANCE` order resolutions away from the integer orders of
+    either wheel and from the fitted drive harmonics."""
+    speed = recording.operating.drive_mean_speed_rad_s / (2 * math.pi)  # primary, rev/s
+    wheel_speed = speed if wheel == "primary" else speed / recording.gear_ratio
+    resolution = 1.0 / (wheel_speed * recording.duration)
+    drive = recording.operating.drive_frequency_hz / wheel_speed
+    other = recording.gear_ratio if wheel == "primary" else 1.0 / recording.gear_ratio
+    busy = np.concatenate(
+        [
+            np.arange(0, 5),
+            other * np.arange(1, 12),
+            drive * np.arange(1, 2 * DRIVE_HARMONICS + 1) / 2,
+        ]
+    )
+    grid = np.arange(0.5, 3.5, resolution / 4)
+    free = grid[np.min(np.abs(grid[:, None] - busy[None]), axis=1) > DECOY_CLEARANCE * resolution]
+    if free.size <= count:
+        return free
+    return free[np.linspace(0, free.size - 1, count).round().astype(int)]
+
+
+def inflation(events: ContactEvents, recording: Recording, wheel: str) -> float:
+    """How much the once-per-revolution Wald χ² of ``wheel`` is inflated by what the fit does
+    not hold (chaotic patterns near the wheel's order, correlation between episodes):
+    the median of the same statistic at :func:`decoy_orders` over its median under the
+    null, at least 1."""
+    chi2 = []
+    for order in decoy_orders(recording, wheel):
+        fit = flank_regression(events, recording, wheel_terms(events, order, wheels=(wheel,)))
+        chi2.append(fit.wald(f"{wheel}.")[0])
+    if not chi2:
+        return 1.0
+    return max(1.0, float(np.median(chi2)) / stats.chi2.median(4))
+
+
+def runout_evidence(recording: Recording, events: ContactEvents | None = None) -> list[AngleTest]:
+    """Once-per-revolution swings of the flanks against each wheel's angle (run-out: a shift
+    of both flanks and a change of the play), one test per wheel (``"runout.primary"``,
+    ``"runout.secondary"``), fitted jointly, each χ² divided by its :func:`inflation`."""
+    events = contact_events(recording) if events is None else events
+    fit = flank_regression(events, recording, wheel_terms(events))
+    r1 = pitch_radius_driving(recording)
+    out = []
+    for wheel in ("primary", "secondary"):
+        test = sinusoid_test(fit, f"{wheel}.", f"runout.{wheel}", r1)
+        lam = inflation(events, recording, wheel)
+        out.append(
+            dataclasses.replace(
+                test,
+                chi2=test.chi2 / lam,
+                p_value=float(stats.chi2.sf(test.chi2 / lam, test.dof)),
+                detail=test.detail | {"inflation": lam},
+            )
+        )
+    return out
+
+
+def mesh_order_evidence(recording: Recording, events: ContactEvents | None = None) -> AngleTest:
+    """A swing of the flanks once per tooth (a transmission error at the mesh order),
+    fitted together with the once-per-revolution terms."""
+    events = contact_events(recording) if events is None else events
+    z1 = recording.gear_pair.teeth_driving
+    terms = wheel_terms(events) | {
+        "mesh.shift.cos": np.cos(z1 * events.theta_primary),
+        "mesh.shift.sin": np.sin(z1 * events.theta_primary),
+    }
+    fit = flank_regression(events, recording, terms)
+    return sinusoid_test(fit, "mesh.", "mesh_order", pitch_radius_driving(recording))
+
+
+def tooth_index(theta: np.ndarray, teeth: int) -> np.ndarray:
+    """Which tooth of a wheel with ``teeth`` teeth is at the mesh at angle ``theta`` (rad),
+    counted from the encoder's zero."""
+    return np.floor(np.mod(theta, 2 * math.pi) / (2 * math.pi) * teeth).astype(int) % teeth
+
+
+def tooth_evidence(recording: Recording, events: ContactEvents | None = None) -> list[AngleTest]:
+    """A flank position that stands out on one tooth of a wheel (a local defect), one test per
+    wheel: each tooth's offset from the mean of the others, fitted with the once-per-revolution
+    terms, and the largest |t| over the teeth, with a Šidák correction over the teeth."""
+    events = contact_events(recording) if events is None else events
+    r1 = pitch_radius_driving(recording)
+    out = []
+    for wheel, teeth in (
+        ("primary", recording.gear_pair.teeth_driving),
+        ("secondary", recording.gear_pair.teeth_driven),
+    ):
+        index = tooth_index(getattr(events, f"theta_{wheel}"), teeth)
+        # tooth 0 is the reference; the others' offsets (sum-to-zero is equivalent for max-t)
+        terms = wheel_terms(events) | {
+            f"tooth.{k}": (index == k).astype(float) - (index == 0) for k in range(1, teeth)
+        }
+        fit = flank_regression(events, recording, terms)
+        i = fit.block("tooth.")
+        b = np.concatenate([[-fit.coef[i].sum()], fit.coef[i]])  # sum-to-zero offsets
+        contrast = np.vstack([-np.ones(teeth - 1), np.eye(teeth - 1)])
+        sd = np.sqrt(np.einsum("ij,jk,ik->i", contrast, fit.covariance[np.ix_(i, i)], contrast))
+        t = b / np.maximum(sd, 1e-300)
+        worst = int(np.argmax(np.abs(t)))
+        p_one = 2 * stats.norm.sf(abs(t[worst]))
+        p = float(1 - (1 - p_one) ** teeth)
+        out.append(
+            AngleTest(
+                name=f"tooth.{wheel}",
+                chi2=float(t[worst] ** 2),
+                dof=1,
+                p_value=p,
+                amplitude=r1 * abs(float(b[worst])),
+                amplitude_sd=r1 * float(sd[worst]),
+                detail={"tooth": worst, "teeth": teeth, "events_per_tooth": len(events) / teeth},
+            )
+        )
+    return out
