@@ -14,7 +14,7 @@ from click.testing import CliRunner
 import rattlefit as rf
 from rattlefit import FitOptions, synthesize
 from rattlefit.cli import main
-from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
+from rattlefit.diagnosis.diagnose import DiagnoseOptions, candidate_problem, diagnose
 from rattlefit.diagnosis.result import baseline_warnings, gap_closed
 from rattlefit.diagnosis.screening import (
     FREE_FACTORS,
@@ -121,12 +121,17 @@ def test_diagnose_supports_nothing_when_nothing_is_withheld():
 
 def test_screen_points_try_each_field_alone_and_together_with_less_film_and_drag():
     rec, _ = _dry_pair2([])
-    problem, _ = build_problem([rec], FitOptions.quick(), np.random.default_rng(BUILD_SEED))
-    specs = effect_specs("runout")
-    p0 = len(problem.specs)
-    z_off = np.concatenate([np.zeros(p0), np.full(len(specs), -8.0)])
+    base, _ = build_problem([rec], FitOptions.quick(), np.random.default_rng(BUILD_SEED))
+    problem, candidates = candidate_problem(base, ("tooth_errors", "runout"))
+    idx = candidates["runout"]
+    specs = [problem.specs[i] for i in idx]
+    assert [s.name for s in specs] == [s.name for s in effect_specs("runout")]
+    p0 = idx[0]
+    z_off = np.concatenate(
+        [np.zeros(len(base.specs)), np.full(len(problem.specs) - len(base.specs), -8.0)]
+    )
     z_off[0] = problem.specs[0].z_of(2e-4)  # a = 0.2 mm
-    pts = screen_points(z_off, specs, problem)
+    pts = screen_points(z_off, idx, problem)
     per_film = 3 * len(SCREEN_DECADES)  # each field alone, then both together
     assert pts.shape == (len(FREE_FACTORS) * per_film, p0 + len(specs))
     values = np.array([[float(s.value(z[p0 + j])) for j, s in enumerate(specs)] for z in pts])

@@ -1,7 +1,9 @@
 """Where the model misses a recording, which unmodelled effect explains it, and by how much.
 
-:func:`diagnose` starts from an identification
-(:func:`~rattlefit.inference.identify.identify`) and
+:func:`diagnose` first reads the recordings alone
+(:mod:`rattlefit.diagnosis.evidence`): the flank positions against each wheel's angle and
+tooth (run-out, a transmission error, a tooth defect) and a drift over the recording. Then it
+starts from an identification (:func:`~rattlefit.inference.identify.identify`) and
 
 1. **locates the gap**: each band's standardised residual ``(measured − fitted)/σ`` at the
    optimum, and the bands where it exceeds :data:`~rattlefit.diagnosis.result.MISSED_Z`;
@@ -22,13 +24,18 @@
    realisations by luck do not count. ``gap_closed`` is the share of the excess misfit
    (χ² − dof) that the effect removes.
 
+The verdict (:class:`~rattlefit.diagnosis.result.Verdict`) is ``"none"`` when the model
+without extra effects fits the band spectrum (χ² p ≥ ``significance``) and no model-free
+test stands out; the effects that significant model-free tests point to are named; a band
+candidate is named when it is supported and leaves a misfit consistent with noise; a
+significant gap that nothing explains is ``"unexplained"``.
+
 An effect is *supported* when an F-test of its χ² drop against the misfit that remains gives
 p < ``significance`` / (effects tried) (Bonferroni: ``significance`` is the family-wise
-level) and the drop exceeds the Monte Carlo noise of a difference of two χ²s. The verdict is
-the supported effect that leaves the least misfit: each effect's χ² without it is simulated
-by another compiled program (the effect's terms at their absent values), which chaos turns
-into another realisation, so the drops are the evidence for each effect and the misfit left
-ranks them.
+level) and the drop exceeds the Monte Carlo noise of a difference of two χ²s. One compiled
+program holds every candidate, each at its absent end unless fitted, so the χ² without
+effects is one number on one set of realisations, and every effect's drop and share of the
+gap compare like with like.
 """
 
 from __future__ import annotations
@@ -55,7 +62,8 @@ from ..io.recording import Recording
 from ..physics.effects import EFFECTS, absent, effect_class
 from ..reproducibility import platform_info
 from ..util import stamped
-from .result import Diagnosis, EffectOutcome, baseline_warnings, gap_closed
+from .evidence import findings
+from .result import Diagnosis, EffectOutcome, baseline_warnings, finding_phrase, gap_closed
 from .screening import FREE_FACTORS, effect_specs, free_alternatives, screen_points
 
 #: One-sided 95 % quantile of the standard normal (the χ² drop's Monte Carlo allowance).
@@ -91,10 +99,18 @@ class DiagnoseOptions:
 
 @dataclasses.dataclass(frozen=True)
 class Trial:
-    """What every effect's trial shares: the identification's problem (its realisations and
-    band spread), noise model and measured features, the fresh release states ``y0`` of the
-    final comparison, the identification's degrees of freedom, the Gauss–Newton iterations
-    and the coordinates held fixed (the nuisances)."""
+    """What every effect's trial shares.
+
+    problem : the identification's problem (its realisations and band spread) with every
+        candidate effect added at its absent end: one compiled program, so that the model
+        without effects and each effect's fit are the same realisations.
+    noise, data, dof : the identification's noise model, measured features (R, B) and
+        degrees of freedom.
+    y0 : fresh release states of the final comparison.
+    iterations : Gauss–Newton iterations per fit.
+    nuisances : coordinates never re-fitted (the parameters with a prior).
+    candidates : each effect's coordinates in ``problem``.
+    """
 
     problem: Problem
     noise: NoiseModel
@@ -103,6 +119,13 @@ class Trial:
     dof: int
     iterations: int
     nuisances: list[int]
+    candidates: dict[str, list[int]]
+
+    def held(self, name: str | None = None) -> list[int]:
+        """Coordinates held fixed in a fit of effect ``name`` (None: of no effect): the
+        nuisances and every other effect's fields."""
+        others = [i for n, idx in self.candidates.items() if n != name for i in idx]
+        return sorted(self.nuisances + others)
 
 
 def whitened_rows(trial: Trial, mean: np.ndarray) -> np.ndarray:
@@ -111,8 +134,9 @@ def whitened_rows(trial: Trial, mean: np.ndarray) -> np.ndarray:
     return trial.noise.whiten @ ((trial.data - mean) / sigma).reshape(-1)
 
 
-def residual_rows(trial: Trial, problem: Problem, zs) -> np.ndarray:
-    """Whitened data rows and prior rows of ``problem`` at each point of ``zs``: (K, n)."""
+def residual_rows(trial: Trial, zs) -> np.ndarray:
+    """Whitened data rows and prior rows at each point of ``zs``: (K, n)."""
+    problem = trial.problem
     mean = np.asarray(problem.mean_of(evaluate(problem, zs)))
     return np.stack(
         [
@@ -122,89 +146,96 @@ def residual_rows(trial: Trial, problem: Problem, zs) -> np.ndarray:
     )
 
 
-def refit(trial: Trial, problem: Problem, z) -> np.ndarray:
+def refit(trial: Trial, z, held: list[int]) -> np.ndarray:
     """``z`` after ``trial.iterations`` of damped Gauss–Newton on the coordinates not in
-    ``trial.nuisances``."""
+    ``held``."""
     if not trial.iterations:
         return z
-    steps = np.minimum(problem.fd_steps(np.asarray(z)), 1.0)[None]
-    rows = functools.partial(residual_rows, trial, problem)
-    return polish_profile(rows, z[None], [trial.nuisances], steps, iterations=trial.iterations)[0]
+    steps = np.minimum(trial.problem.fd_steps(np.asarray(z)), 1.0)[None]
+    rows = functools.partial(residual_rows, trial)
+    return polish_profile(rows, z[None], [held], steps, iterations=trial.iterations)[0]
 
 
 def refit_without_effects(trial: Trial, z, say) -> tuple[np.ndarray, float, float]:
     """The model without effects re-fitted over ``a`` and ``drag_torque`` from the
-    screening's alternatives of them at the identification's optimum ``z``: the re-fitted
-    point, the identification's cost and the re-fit's."""
+    screening's alternatives of them at ``z`` (every effect absent): the re-fitted point,
+    the cost at ``z`` and the re-fit's."""
     say(
         f"re-fitting a and T_b without effects ({len(FREE_FACTORS)} starts, "
-        f"{trial.iterations} iterations) …"
+        f"{trial.iterations} iterations; one program holds every candidate, compiling first) …"
     )
     starts = free_alternatives(np.asarray(z, dtype=float), trial.problem)
-    cost = np.sum(residual_rows(trial, trial.problem, starts) ** 2, axis=1)  # row 0: z
-    z_base = refit(trial, trial.problem, starts[int(np.argmin(cost))])
-    refit_cost = float(np.sum(residual_rows(trial, trial.problem, z_base[None]) ** 2))
+    cost = np.sum(residual_rows(trial, starts) ** 2, axis=1)  # row 0: z
+    z_base = refit(trial, starts[int(np.argmin(cost))], trial.held())
+    refit_cost = float(np.sum(residual_rows(trial, z_base[None]) ** 2))
     return z_base, float(cost[0]), refit_cost
 
 
-def fit_effect(trial: Trial, name: str, z_base, say) -> tuple[Problem, np.ndarray, np.ndarray]:
-    """Effect ``name`` added at its absent end, screened and fitted with ``a`` and
-    ``drag_torque``: its problem, the point without it and the fitted point."""
-    specs = effect_specs(name)
-    problem = dataclasses.replace(
-        trial.problem, specs=trial.problem.specs + specs, effect=absent(name)
-    )
-    z_off = np.concatenate([z_base, np.full(len(specs), -Z_END)])
-    starts = np.concatenate([z_off[None], screen_points(z_off, specs, trial.problem)])
-    cost = np.sum(residual_rows(trial, problem, starts) ** 2, axis=1)
+def fit_effect(trial: Trial, name: str, z_base, say) -> np.ndarray:
+    """Effect ``name`` screened from ``z_base`` (every effect absent) and fitted with ``a``
+    and ``drag_torque``, the other effects held absent: the fitted point."""
+    idx = trial.candidates[name]
+    starts = np.concatenate([z_base[None], screen_points(z_base, idx, trial.problem)])
+    cost = np.sum(residual_rows(trial, starts) ** 2, axis=1)
     best = starts[1 + int(np.argmin(cost[1:]))]
     say(
         f"  {name}: cost {cost[0]:.1f} without, {cost.min():.1f} at the best start; "
         f"fitting it with a and T_b ({trial.iterations} iterations) …"
     )
-    return problem, z_off, refit(trial, problem, best)
+    return refit(trial, best, trial.held(name))
+
+
+def final_chi2(trial: Trial, z) -> tuple[float, np.ndarray]:
+    """χ² of the data rows at ``z`` on the fresh release states, and the mean features."""
+    mean = np.asarray(trial.problem.mean_of(evaluate(trial.problem, z[None], trial.y0)))[0]
+    return float(np.sum(whitened_rows(trial, mean) ** 2)), mean
 
 
 def judge_effect(
-    trial: Trial, name: str, problem: Problem, z_off, z_fit, level: float
+    trial: Trial, name: str, chi2_without: float, z_fit, level: float
 ) -> EffectOutcome:
-    """The effect's outcome: χ² without and with it on the fresh realisations, the F-test
-    at ``level`` and the Monte Carlo noise of the drop."""
-    specs = problem.specs[len(trial.problem.specs) :]
-    d, p0 = len(specs), len(trial.problem.specs)
-    pair = np.stack([z_off, z_fit])
-    mean = np.asarray(problem.mean_of(evaluate(problem, pair, trial.y0)))
-    chi2 = [float(np.sum(whitened_rows(trial, mean[k]) ** 2)) for k in range(2)]
-    delta = chi2[0] - chi2[1]
+    """The effect's outcome: χ² with it on the fresh realisations against ``chi2_without``
+    (the same realisations without any effect), the F-test at ``level`` and the Monte Carlo
+    noise of the drop."""
+    idx = trial.candidates[name]
+    d = len(idx)
+    chi2_with, mean = final_chi2(trial, z_fit)
+    delta = chi2_without - chi2_with
     # Monte Carlo noise of each χ² from n realisations (cf. the profile threshold)
     n, dof = trial.y0.shape[1], trial.dof
-    var = 4.0 * max(chi2[0], dof) / (n + 1) + 4.0 * max(chi2[1], dof) / (n + 1)
+    var = 4.0 * max(chi2_without, dof) / (n + 1) + 4.0 * max(chi2_with, dof) / (n + 1)
     threshold = Z95_ONE_SIDED * math.sqrt(var)
     dof_with = max(dof - d, 1)
-    f_stat = (delta / d) / max(chi2[1] / dof_with, 1e-12)
+    f_stat = (delta / d) / max(chi2_with / dof_with, 1e-12)
     p_value = float(stats.f.sf(f_stat, d, dof_with)) if delta > 0 else 1.0
-    values = {s.name.split(".", 1)[1]: float(s.value(pair[1][p0 + j])) for j, s in enumerate(specs)}
+    specs = [trial.problem.specs[i] for i in idx]
+    values = {
+        s.name.split(".", 1)[1]: float(s.value(z_fit[i])) for i, s in zip(idx, specs, strict=True)
+    }
     return EffectOutcome(
         name=name,
         values=values,
         units={k: u for k, (u, _, _) in effect_class(name).ranges.items()},
-        chi2_without=chi2[0],
-        chi2_with=chi2[1],
+        chi2_without=chi2_without,
+        chi2_with=chi2_with,
         delta_chi2=delta,
-        gap_closed=gap_closed(chi2[0], chi2[1], dof),
+        gap_closed=gap_closed(chi2_without, chi2_with, dof),
         p_value=p_value,
         noise_threshold=threshold,
         supported=bool(p_value < level and delta > threshold),
-        residuals=(trial.data - mean[1]) / np.asarray(trial.problem.sigma),
+        residuals=(trial.data - mean) / np.asarray(trial.problem.sigma),
         wall_time=0.0,
+        p_after=float(stats.chi2.sf(chi2_with, dof_with)),
     )
 
 
-def try_effect(trial: Trial, name: str, z_base, level: float, say) -> EffectOutcome:
+def try_effect(
+    trial: Trial, name: str, z_base, chi2_without: float, level: float, say
+) -> EffectOutcome:
     """Fit effect ``name`` (:func:`fit_effect`) and judge it (:func:`judge_effect`)."""
     t0 = time.perf_counter()
-    problem, z_off, z_fit = fit_effect(trial, name, z_base, say)
-    outcome = judge_effect(trial, name, problem, z_off, z_fit, level)
+    z_fit = fit_effect(trial, name, z_base, say)
+    outcome = judge_effect(trial, name, chi2_without, z_fit, level)
     outcome = dataclasses.replace(outcome, wall_time=time.perf_counter() - t0)
     say(
         f"  {name}: χ² {outcome.chi2_without:.1f} → {outcome.chi2_with:.1f} "
@@ -214,24 +245,39 @@ def try_effect(trial: Trial, name: str, z_base, level: float, say) -> EffectOutc
     return outcome
 
 
+def candidate_problem(problem: Problem, names) -> tuple[Problem, dict[str, list[int]]]:
+    """``problem`` with every effect in ``names`` added at its absent end, and each effect's
+    coordinates."""
+    specs, candidates = list(problem.specs), {}
+    for name in names:
+        extra = effect_specs(name)
+        candidates[name] = list(range(len(specs), len(specs) + len(extra)))
+        specs += extra
+    effects = tuple(absent(name) for name in names)
+    return dataclasses.replace(problem, specs=tuple(specs), effects=effects), candidates
+
+
 def trial_of(
     recordings: Sequence[Recording], baseline: FitResult, options: DiagnoseOptions
 ) -> Trial:
-    """The :class:`Trial` of ``baseline``: its problem, noise model and fresh release states
-    (seeded from the fit's seed + 1) for the final comparison."""
-    problem = baseline.problem_for(recordings)
+    """The :class:`Trial` of ``baseline``: its problem with every candidate of ``options``,
+    noise model and fresh release states (seeded from the fit's seed + 1) for the final
+    comparison."""
+    base = baseline.problem_for(recordings)
+    problem, candidates = candidate_problem(base, options.effects)
     fit_options = baseline.options
     n_final = options.n_final or fit_options.n_covariance_realisations
-    y0 = release_states(problem, baseline.z, n_final, np.random.default_rng(fit_options.seed + 1))
-    nuisances = [i for i, sp in enumerate(problem.specs) if sp.log_sd is not None]
+    y0 = release_states(base, baseline.z, n_final, np.random.default_rng(fit_options.seed + 1))
+    nuisances = [i for i, sp in enumerate(base.specs) if sp.log_sd is not None]
     return Trial(
         problem,
         baseline.noise,
-        np.asarray(problem.data),
+        np.asarray(base.data),
         y0,
         baseline.dof,
         options.iterations,
         nuisances,
+        candidates,
     )
 
 
@@ -254,6 +300,10 @@ def diagnose(
     t_start = time.perf_counter()
     say = stamped(progress, t_start)  # progress, stamped with the time since the start
     platform = platform_info()
+    found = findings(recordings, options.significance)
+    for f in found:
+        if f.significant:
+            say(f"model-free evidence: {finding_phrase(f)}")
     if baseline is None:
         say("identifying the model without extra effects …")
         baseline = identify(recordings, options.fit, progress=progress)
@@ -263,15 +313,19 @@ def diagnose(
             f"{[str(r.path) for r in recordings]}"
         )
     trial = trial_of(recordings, baseline, options)
-    z_base, cost_identified, refit_cost = refit_without_effects(trial, baseline.z, say)
+    z_absent = np.concatenate(
+        [baseline.z, np.full(len(trial.problem.specs) - len(baseline.z), -Z_END)]
+    )
+    z_base, cost_identified, refit_cost = refit_without_effects(trial, z_absent, say)
+    chi2_without, _ = final_chi2(trial, z_base)
     warnings = baseline_warnings(baseline.success, cost_identified, refit_cost)
     for w in warnings:
         say("  warning: " + w)
     level = options.significance / len(options.effects)  # Bonferroni over the effects tried
     outcomes = []
     for n, name in enumerate(options.effects):
-        say(f"effect {n + 1}/{len(options.effects)}: {name} — screening (compiling first) …")
-        outcomes.append(try_effect(trial, name, z_base, level, say))
+        say(f"effect {n + 1}/{len(options.effects)}: {name} — screening …")
+        outcomes.append(try_effect(trial, name, z_base, chi2_without, level, say))
     outcomes.sort(key=lambda o: o.chi2_with)  # the least misfit left first (module docstring)
     bands = trial.problem.bands
     wall = time.perf_counter() - t_start
@@ -286,5 +340,7 @@ def diagnose(
         wall_time=wall,
         refit_costs=(cost_identified, refit_cost),
         warnings=tuple(warnings),
+        findings=tuple(found),
+        significance=options.significance,
         platform=platform,
     )

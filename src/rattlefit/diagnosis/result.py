@@ -1,4 +1,4 @@
-"""What a diagnosis returns: each effect's outcome, the gap, and the verdict."""
+"""What a diagnosis returns: each effect's outcome, the model-free findings, the verdict."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 
 from ..inference.result import FitResult
+from .evidence import Finding
 
 #: A band counts as missed when its standardised residual exceeds this (in σ).
 MISSED_Z = 3.0
@@ -29,6 +30,8 @@ class EffectOutcome:
     noise_threshold : Monte Carlo noise of a χ² difference (95 % one-sided).
     supported : ``p_value`` < the significance over the number of effects tried, and
         ``delta_chi2`` > ``noise_threshold``.
+    p_after : probability of a χ² at least ``chi2_with`` from noise alone (dof less the
+        effect's fields): small when the effect leaves a significant misfit.
     residuals : (R, B) standardised band residuals with the effect.
     """
 
@@ -44,6 +47,7 @@ class EffectOutcome:
     supported: bool
     residuals: np.ndarray
     wall_time: float
+    p_after: float = 1.0
 
     def as_dict(self) -> dict:
         d = dataclasses.asdict(self)
@@ -68,6 +72,10 @@ class Diagnosis:
     wall_time: float
     refit_costs: tuple[float, float]  # cost at the identification, after the re-fit
     warnings: tuple[str, ...] = ()
+    #: the model-free tests of every recording (:func:`~rattlefit.diagnosis.evidence.findings`)
+    findings: tuple[Finding, ...] = ()
+    #: the family-wise level of the diagnosis (:attr:`DiagnoseOptions.significance`)
+    significance: float = 0.01
     #: what a seeded result depends on (:func:`~rattlefit.reproducibility.platform_info`),
     #: captured when the diagnosis ran
     platform: dict = dataclasses.field(default_factory=dict, compare=False)
@@ -84,15 +92,36 @@ class Diagnosis:
         return out
 
     @property
-    def verdict(self) -> EffectOutcome | None:
-        """The supported effect that leaves the least misfit (lowest χ² with it), or None."""
-        supported = [o for o in self.outcomes if o.supported]
-        return supported[0] if supported else None
+    def band_gap(self) -> bool:
+        """The model without extra effects misses the band spectrum: its χ² has p below the
+        significance."""
+        return bool(self.baseline.p_value < self.significance)
+
+    def explaining(self) -> EffectOutcome | None:
+        """The band candidate that explains the band gap: supported, leaving a misfit
+        consistent with noise (``p_after`` ≥ significance), the least misfit first; None
+        when there is no band gap or no candidate closes it."""
+        if not self.band_gap:
+            return None
+        closing = [o for o in self.outcomes if o.supported and o.p_after >= self.significance]
+        return min(closing, key=lambda o: o.chi2_with) if closing else None
+
+    @property
+    def verdict(self) -> Verdict:
+        """What the diagnosis concludes (:class:`Verdict`)."""
+        return verdict_of(self)
 
     def to_json(self) -> dict:
         v = self.verdict
         return {
-            "verdict": None if v is None else v.name,
+            "verdict": v.label,
+            "verdict_kind": v.kind,
+            "verdict_effects": list(v.effects),
+            "sentence": v.sentence,
+            "band_gap": v.band_gap,
+            "band_gap_explained": v.band_gap_explained,
+            "significance": self.significance,
+            "findings": [f.as_dict() for f in self.findings],
             "baseline": {
                 "chi2": self.baseline.chi2,
                 "dof": self.baseline.dof,
@@ -141,3 +170,87 @@ def gap_closed(chi2_without: float, chi2_with: float, dof: int) -> float:
     if excess <= 0:
         return 0.0
     return float(np.clip((chi2_without - chi2_with) / excess, 0.0, 1.0))
+
+
+@dataclasses.dataclass(frozen=True)
+class Verdict:
+    """The diagnosis' conclusion.
+
+    kind : ``"none"`` (no significant gap in any domain), ``"unexplained"`` (a significant
+        gap that no candidate explains), ``"effect"`` or ``"effects"`` (one or two named).
+    effects : the named effects, model-free findings first.
+    band_gap : the band spectrum misses significantly without extra effects.
+    band_gap_explained : a band candidate closes that gap.
+    sentence : the conclusion in one plain sentence.
+    """
+
+    kind: str
+    effects: tuple[str, ...]
+    band_gap: bool
+    band_gap_explained: bool
+    sentence: str
+
+    @property
+    def label(self) -> str:
+        """``"none"``, ``"unexplained"`` or the effects joined by ``+``."""
+        return "+".join(self.effects) if self.effects else self.kind
+
+
+def found_effects(findings) -> list[tuple[str, Finding]]:
+    """The effects that significant findings name, each with its most significant finding."""
+    best: dict[str, Finding] = {}
+    for f in sorted(findings, key=lambda f: f.test.p_value):
+        if f.significant and f.effect not in best:
+            best[f.effect] = f
+    return list(best.items())
+
+
+def finding_phrase(f: Finding) -> str:
+    """One finding in words, e.g. ``runout (runout.secondary: 40.2 ± 2.7 µm, p = 4e-192)``."""
+    t = f.test
+    if t.name == "drift":
+        size = f"{t.detail.get('statistic')} changes by {t.amplitude:+.3g}"
+    else:
+        size = f"{1e6 * t.amplitude:.1f} ± {1e6 * t.amplitude_sd:.1f} µm"
+    return f"{f.effect} ({t.name}: {size}, p = {t.p_value:.2g})"
+
+
+def verdict_of(diag: Diagnosis) -> Verdict:
+    """The :class:`Verdict` of ``diag``: effects named by significant model-free findings,
+    then the band candidate that explains the band gap (:meth:`Diagnosis.explaining`)."""
+    fit = diag.baseline
+    found = found_effects(diag.findings)
+    closing = diag.explaining()
+    names = [name for name, _ in found]
+    if closing is not None and closing.name not in names:
+        names.append(closing.name)
+    fit_words = f"χ² {fit.chi2:.1f} on {fit.dof} dof, p = {fit.p_value:.2g}"
+    if not names and not diag.band_gap:
+        kind = "none"
+        sentence = (
+            f"No significant gap: the model without extra effects fits the band spectrum "
+            f"({fit_words}) and no angle- or time-domain test stands out."
+        )
+    elif not names:
+        kind = "unexplained"
+        best = min(diag.outcomes, key=lambda o: o.chi2_with, default=None)
+        tried = (
+            ""
+            if best is None
+            else f"; the candidate that leaves the least misfit, {best.name}, leaves "
+            f"χ² {best.chi2_with:.1f} (p = {best.p_after:.2g})"
+        )
+        sentence = f"A significant gap that no candidate explains: {fit_words}{tried}."
+    else:
+        kind = "effect" if len(names) == 1 else "effects"
+        parts = [finding_phrase(f) for _, f in found]
+        if closing is not None and closing.name not in dict(found):
+            parts.append(
+                f"{closing.name} (closes {100 * closing.gap_closed:.0f} % of the band misfit: "
+                f"χ² {closing.chi2_without:.1f} → {closing.chi2_with:.1f})"
+            )
+        sentence = "Found " + " and ".join(parts)
+        if diag.band_gap and closing is None:
+            sentence += f"; the band misfit ({fit_words}) remains unexplained"
+        sentence += "."
+    return Verdict(kind, tuple(names), diag.band_gap, closing is not None, sentence)

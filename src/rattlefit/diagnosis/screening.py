@@ -54,25 +54,23 @@ FREE_FACTORS = (
 )
 
 
-def screen_points(
-    z_off: np.ndarray, specs: Sequence[ParameterSpec], problem: Problem
-) -> np.ndarray:
-    """Starting points: each effect field alone at :data:`SCREEN_DECADES` below the top of
-    its range (the others absent), and, with several fields, all of them together; each
-    with the film half-length and the drag torque at :data:`FREE_FACTORS` of their values
-    at ``z_off``."""
-    first = len(problem.specs)
+def screen_points(z_off: np.ndarray, indices: Sequence[int], problem: Problem) -> np.ndarray:
+    """Starting points: each field of an effect (its coordinates ``indices`` in ``problem``)
+    alone at :data:`SCREEN_DECADES` below the top of its range (the others absent), and,
+    with several fields, all of them together; each with the film half-length and the drag
+    torque at :data:`FREE_FACTORS` of their values at ``z_off``."""
+    specs = [problem.specs[i] for i in indices]
     grid = [np.array([s.z_of(s.upper * 10.0**-k) for s in specs]) for k in SCREEN_DECADES]
     fields = []
-    for j in range(len(specs)):
+    for j, i in enumerate(indices):
         for g in grid:
             z = z_off.copy()
-            z[first + j] = g[j]
+            z[i] = g[j]
             fields.append(z)
     if len(specs) > 1:
         for g in grid:
             z = z_off.copy()
-            z[first:] = g
+            z[list(indices)] = g
             fields.append(z)
     free = free_indices(problem)
     points = []

@@ -36,6 +36,8 @@ DRIVE_HARMONICS = 3
 #: Observations further than this many robust standard deviations from the fit are dropped
 #: (turning points short of the flank, e.g. in a thick oil film), and the fit repeated.
 OUTLIER_Z = 4.0
+#: A flank met fewer times than this is left out of the flank fit.
+MIN_FLANK_EVENTS = 60
 #: Decoy orders behind each inflation estimate, and their clearance from the orders where
 #: something is expected, in order resolutions (1 / revolutions recorded).
 DECOY_COUNT = 15
@@ -129,8 +131,9 @@ class FlankFit:
 
 
 def design(events: ContactEvents, recording: Recording, terms: dict[str, np.ndarray]):
-    """Design matrix of the flank fit: a constant and :data:`DRIVE_HARMONICS` drive-cycle
-    harmonics per flank, then each of ``terms`` (name → (n,) column) shared by both flanks."""
+    """Design matrix of the flank fit and its column names: a constant and the drive-cycle
+    harmonics (halves up to :data:`DRIVE_HARMONICS`) per flank, then each of ``terms``
+    (name → (n,) column); columns that are zero for every event are left out."""
     phase = 2 * math.pi * recording.operating.drive_frequency_hz * events.time
     cols, names = [], []
     for flank, tag in ((1, "upper"), (-1, "lower")):
@@ -143,7 +146,9 @@ def design(events: ContactEvents, recording: Recording, terms: dict[str, np.ndar
     for name, col in terms.items():
         cols.append(col)
         names.append(name)
-    return np.stack(cols, axis=1), tuple(names)
+    x = np.stack(cols, axis=1)
+    used = np.any(x != 0, axis=0)  # a flank without contacts has no columns
+    return x[:, used], tuple(n for n, u in zip(names, used, strict=True) if u)
 
 
 def robust_scale(residuals: np.ndarray) -> float:
@@ -166,43 +171,72 @@ def cluster_covariance(x: np.ndarray, residuals: np.ndarray, clusters: np.ndarra
     return factor * bread @ meat @ bread
 
 
+def usable(events: ContactEvents) -> ContactEvents:
+    """``events`` on the flanks met at least :data:`MIN_FLANK_EVENTS` times (a flank met a
+    few times cannot carry its own drive-cycle harmonics)."""
+    keep = np.zeros(len(events), bool)
+    for flank in (1, -1):
+        on = events.flank == flank
+        if on.sum() >= MIN_FLANK_EVENTS:
+            keep |= on
+    return ContactEvents(*(getattr(events, f.name)[keep] for f in dataclasses.fields(events)))
+
+
 def flank_regression(
     events: ContactEvents, recording: Recording, terms: dict[str, np.ndarray]
 ) -> FlankFit:
-    """Fit the flanks' positions with :func:`design` (``terms`` shared by both flanks).
+    """Fit the flanks' positions with :func:`design`, on the :func:`usable` flanks only.
 
     A flank bounds the motion: contact pieces lie on it (up to quantisation and the contact's
-    deflection, outwards), turning points short of it lie inside. The fit therefore keeps the
-    observations within :data:`OUTLIER_Z` standard deviations of it, the deviation estimated
-    from the outward residuals alone, and repeats until the kept set settles: an envelope.
+    deflection, outwards), turning points short of it lie inside. The fit therefore starts
+    from each flank's outer half, keeps the observations within :data:`OUTLIER_Z` standard
+    deviations of the fit, each flank's deviation estimated from its outward residuals
+    alone, weights each flank by the inverse square of that deviation, and repeats until the
+    kept set settles: an envelope of each flank.
     """
+    keep = np.isin(events.flank, np.unique(usable(events).flank))
+    events = ContactEvents(*(getattr(events, f.name)[keep] for f in dataclasses.fields(events)))
+    terms = {k: v[keep] for k, v in terms.items()}
     x, names = design(events, recording, terms)
     y = events.position
-    kept = np.ones(y.size, bool)
+    outer = events.flank * y
+    kept = np.zeros(y.size, bool)
+    for flank in (1, -1):
+        on = events.flank == flank
+        if on.any():
+            kept |= on & (outer >= np.median(outer[on]))
+    scale = np.ones(y.size)
     for _ in range(30):
-        coef, *_ = np.linalg.lstsq(x[kept], y[kept], rcond=None)
+        w = 1.0 / scale[kept]
+        coef, *_ = np.linalg.lstsq(x[kept] * w[:, None], y[kept] * w, rcond=None)
         outward = events.flank * (y - x @ coef)
-        out = outward[kept & (outward > 0)]
-        scale = max(float(np.sqrt(np.mean(out**2))) if out.size else 0.0, 1e-12)
+        for flank in (1, -1):
+            on = events.flank == flank
+            out = outward[kept & on & (outward > 0)]
+            scale[on] = max(float(np.sqrt(np.mean(out**2))) if out.size else 0.0, 1e-12)
         new = np.abs(outward) <= OUTLIER_Z * scale
         if np.array_equal(new, kept) or new.sum() <= x.shape[1]:
             break
         kept = new
     res = y - x @ coef
-    cov = cluster_covariance(x[kept], res[kept], events.episode[kept])
-    return FlankFit(coef, cov, names, kept, scale)
+    w = 1.0 / scale[kept]
+    cov = cluster_covariance(x[kept] * w[:, None], res[kept] * w, events.episode[kept])
+    full = np.zeros(keep.size, bool)
+    full[np.flatnonzero(keep)[kept]] = True
+    return FlankFit(coef, cov, names, full, float(np.median(scale)))
 
 
 def wheel_terms(events: ContactEvents, order: float = 1.0, *, wheels=("primary", "secondary")):
-    """Sinusoids of ``order`` × each wheel's angle: ``"<wheel>.shift.cos|sin"`` move both
-    flanks alike (a transmission error), ``"<wheel>.play.cos|sin"`` move them apart (a
-    centre-distance change, which widens and narrows the play)."""
+    """Sinusoids of ``order`` × each wheel's angle, one pair per flank, named
+    ``"<wheel>.<upper|lower>.cos|sin"``: a transmission error moves both flanks alike, a
+    change of the centre distance moves them apart (it widens and narrows the play)."""
     out = {}
     for wheel in wheels:
         theta = order * getattr(events, f"theta_{wheel}")
-        c, s = np.cos(theta), np.sin(theta)
-        out |= {f"{wheel}.shift.cos": c, f"{wheel}.shift.sin": s}
-        out |= {f"{wheel}.play.cos": events.flank * c, f"{wheel}.play.sin": events.flank * s}
+        for flank, tag in ((1, "upper"), (-1, "lower")):
+            on = (events.flank == flank).astype(float)
+            out[f"{wheel}.{tag}.cos"] = on * np.cos(theta)
+            out[f"{wheel}.{tag}.sin"] = on * np.sin(theta)
     return out
 
 
@@ -350,40 +384,69 @@ def tooth_index(theta: np.ndarray, teeth: int) -> np.ndarray:
     return np.floor(np.mod(theta, 2 * math.pi) / (2 * math.pi) * teeth).astype(int) % teeth
 
 
+def tooth_offsets(events: ContactEvents, recording: Recording, wheel: str, order: float = 1.0):
+    """Each tooth's flank offset from the mean of all (sum-to-zero contrasts, rad), its
+    standard error, fitted with the once-per-revolution terms; teeth counted on ``order`` ×
+    the wheel's angle (1: the real teeth; otherwise a decoy partition)."""
+    teeth = wheel_teeth(recording, wheel)
+    index = tooth_index(order * getattr(events, f"theta_{wheel}"), teeth)
+    terms = wheel_terms(events) | {
+        f"tooth.{k}": (index == k).astype(float) - (index == 0) for k in range(1, teeth)
+    }
+    fit = flank_regression(events, recording, terms)
+    i = fit.block("tooth.")
+    b = np.concatenate([[-fit.coef[i].sum()], fit.coef[i]])
+    contrast = np.vstack([-np.ones(i.size), np.eye(i.size)])
+    sd = np.sqrt(np.einsum("ij,jk,ik->i", contrast, fit.covariance[np.ix_(i, i)], contrast))
+    return b, sd
+
+
+def wheel_teeth(recording: Recording, wheel: str) -> int:
+    """Tooth count of ``wheel`` (``"primary"`` or ``"secondary"``)."""
+    g = recording.gear_pair
+    return g.teeth_driving if wheel == "primary" else g.teeth_driven
+
+
+def max_t2(b: np.ndarray, sd: np.ndarray) -> tuple[float, int]:
+    """The largest squared t over the teeth, and which tooth."""
+    t2 = (b / np.maximum(sd, 1e-300)) ** 2
+    worst = int(np.argmax(t2))
+    return float(t2[worst]), worst
+
+
 def tooth_evidence(recording: Recording, events: ContactEvents | None = None) -> list[AngleTest]:
     """A flank position that stands out on one tooth of a wheel (a local defect), one test per
-    wheel: each tooth's offset from the mean of the others, fitted with the once-per-revolution
-    terms, and the largest |t| over the teeth, with a Šidák correction over the teeth."""
+    wheel: each tooth's offset from the mean of all (:func:`tooth_offsets`) and the largest
+    squared t over the teeth, divided by its inflation at decoy partitions of the wheel
+    (:func:`decoy_orders`), with a Šidák correction over the teeth."""
     events = contact_events(recording) if events is None else events
     r1 = pitch_radius_driving(recording)
     out = []
-    for wheel, teeth in (
-        ("primary", recording.gear_pair.teeth_driving),
-        ("secondary", recording.gear_pair.teeth_driven),
-    ):
-        index = tooth_index(getattr(events, f"theta_{wheel}"), teeth)
-        # tooth 0 is the reference; the others' offsets (sum-to-zero is equivalent for max-t)
-        terms = wheel_terms(events) | {
-            f"tooth.{k}": (index == k).astype(float) - (index == 0) for k in range(1, teeth)
-        }
-        fit = flank_regression(events, recording, terms)
-        i = fit.block("tooth.")
-        b = np.concatenate([[-fit.coef[i].sum()], fit.coef[i]])  # sum-to-zero offsets
-        contrast = np.vstack([-np.ones(teeth - 1), np.eye(teeth - 1)])
-        sd = np.sqrt(np.einsum("ij,jk,ik->i", contrast, fit.covariance[np.ix_(i, i)], contrast))
-        t = b / np.maximum(sd, 1e-300)
-        worst = int(np.argmax(np.abs(t)))
-        p_one = 2 * stats.norm.sf(abs(t[worst]))
-        p = float(1 - (1 - p_one) ** teeth)
+    for wheel in ("primary", "secondary"):
+        teeth = wheel_teeth(recording, wheel)
+        b, sd = tooth_offsets(events, recording, wheel)
+        t2, worst = max_t2(b, sd)
+        decoys = [
+            max_t2(*tooth_offsets(events, recording, wheel, o))[0]
+            for o in decoy_orders(recording, wheel)
+        ]
+        null_median = stats.chi2.ppf(0.5 ** (1.0 / teeth), 1)  # of the max of `teeth` χ²₁
+        lam = max(1.0, float(np.median(decoys)) / null_median) if decoys else 1.0
+        p_one = stats.chi2.sf(t2 / lam, 1)
         out.append(
             AngleTest(
                 name=f"tooth.{wheel}",
-                chi2=float(t[worst] ** 2),
+                chi2=t2 / lam,
                 dof=1,
-                p_value=p,
+                p_value=float(1 - (1 - p_one) ** teeth),
                 amplitude=r1 * abs(float(b[worst])),
                 amplitude_sd=r1 * float(sd[worst]),
-                detail={"tooth": worst, "teeth": teeth, "events_per_tooth": len(events) / teeth},
+                detail={
+                    "tooth": worst,
+                    "teeth": teeth,
+                    "events_per_tooth": len(events) / teeth,
+                    "inflation": lam,
+                },
             )
         )
     return out

@@ -72,8 +72,9 @@ class Problem(eqx.Module):
     recording_regime: bool = eqx.field(static=True)  # FitOptions.regime == "recording"
     static: tuple = eqx.field(static=True)  # simulator options as sorted items
     films: tuple = eqx.field(static=True)  # (R,) each recording's film half-length's name
-    #: an extra effect whose fitted fields are specs named "<effect>.<field>" (diagnose)
-    effect: Effect | None = None
+    #: extra effects whose fitted fields are specs named "<effect>.<field>" (diagnose); one
+    #: compiled program holds them all, each at its absent end unless its fields move
+    effects: tuple[Effect, ...] = ()
 
     @property
     def n_rec(self) -> int:
@@ -91,16 +92,18 @@ class Problem(eqx.Module):
             stiffness_scale=v["stiffness_scale"],
         )
 
-    def effect_at(self, z) -> Effect:
-        """:attr:`effect` with its fitted fields set from ``z``."""
-        prefix = self.effect.name + "."
-        return self.effect.replace(
-            **{
+    def effects_at(self, z) -> tuple[Effect, ...]:
+        """:attr:`effects` with their fitted fields set from ``z``."""
+        out = []
+        for effect in self.effects:
+            prefix = effect.name + "."
+            values = {
                 s.name[len(prefix) :]: s.value(z[i])
                 for i, s in enumerate(self.specs)
                 if s.name.startswith(prefix)
             }
-        )
+            out.append(effect.replace(**values) if values else effect)
+        return tuple(out)
 
     def rows(self, zs, y0=None, realisations=None):
         """One simulation per row for each point of ``zs`` (K, P), recording and realisation.
@@ -151,8 +154,8 @@ class Problem(eqx.Module):
         def row_inputs(z, r, d):
             model = jax.tree_util.tree_map(lambda x: x[r], untabled)
             drive = jax.tree_util.tree_map(lambda x: x[r], self.drives)
-            if self.effect is not None:
-                model = model.with_effects(self.effect_at(z))
+            if self.effects:
+                model = model.with_effects(*self.effects_at(z))
             return model, self.params_for(z, r, d), drive
 
         def measure(sol, model, r, phase):

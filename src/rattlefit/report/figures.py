@@ -163,7 +163,8 @@ def residuals(diagnosis: dict, names: list[str], missed_z: float) -> bytes:
     centres = np.asarray(diagnosis["band_centers_hz"], dtype=float)
     base = np.asarray(diagnosis["residuals"], dtype=float)
     effects = diagnosis.get("effects") or []
-    best = next((e for e in effects if e["name"] == diagnosis.get("verdict")), None)
+    named = diagnosis.get("verdict_effects") or [diagnosis.get("verdict")]
+    best = next((e for e in effects if e["name"] in named), None)
     best = best or (effects[0] if effects else None)
     fig, axes = _pyplot().subplots(len(base), 1, figsize=(8, 3.0 * len(base)), squeeze=False)
     for k, ax in enumerate(axes[:, 0]):

@@ -137,9 +137,28 @@ def _si(value: float, unit: str) -> str:
     return f"{value * mult:.3g} {shown}".rstrip()
 
 
+def _level(diag: Diagnosis) -> float:
+    return diag.findings[0].level if diag.findings else diag.significance
+
+
 def format_diagnosis(diag: Diagnosis) -> str:
-    """Where the model misses, each effect's χ² without and with it, and the verdict."""
-    lines = []
+    """The verdict in one sentence, then the model-free findings, where the model misses the
+    bands, and each effect's χ² without and with it."""
+    verdict = diag.verdict
+    lines = [f"verdict: {verdict.label} — {verdict.sentence}", ""]
+    lines.append(f"model-free tests (counted below p = {_level(diag):.2g} and the size floor):")
+    for f in diag.findings:
+        t = f.test
+        size = (
+            f"{t.amplitude:+.3g} ({t.detail.get('statistic')})"
+            if t.name == "drift"
+            else f"{1e6 * t.amplitude:.1f} ± {1e6 * t.amplitude_sd:.1f} µm"
+        )
+        mark = "  ← " + f.effect if f.significant else ""
+        lines.append(
+            f"  recording {f.recording}: {t.name:18s} {size:24s} p = {t.p_value:.2g}{mark}"
+        )
+    lines.append("")
     missed = diag.missed_bands
     if missed:
         lines.append(f"where the fitted model misses the data (|z| > {MISSED_Z:g}):")
@@ -155,7 +174,9 @@ def format_diagnosis(diag: Diagnosis) -> str:
             f"no band misses by more than {MISSED_Z:g} σ (χ² = {diag.baseline.chi2:.1f} on "
             f"{diag.baseline.dof} dof, p = {diag.baseline.p_value:.2g})"
         )
-    rows = [("effect", "χ² without → with", "gap closed", "p", "supported", "fitted size")]
+    rows = [
+        ("effect", "χ² without → with", "gap closed", "p", "p after", "supported", "fitted size")
+    ]
     for o in diag.outcomes:
         size = ", ".join(f"{k} {_si(v, o.units[k])}" for k, v in o.values.items())
         rows.append(
@@ -164,6 +185,7 @@ def format_diagnosis(diag: Diagnosis) -> str:
                 f"{o.chi2_without:.1f} → {o.chi2_with:.1f}",
                 f"{100 * o.gap_closed:.0f} %",
                 f"{o.p_value:.2g}",
+                f"{o.p_after:.2g}",
                 "yes" if o.supported else "no",
                 size,
             )
@@ -172,17 +194,6 @@ def format_diagnosis(diag: Diagnosis) -> str:
     table = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
     table.insert(1, "  ".join("-" * w for w in widths))
     lines += ["", *table, ""]
-    best = diag.verdict
-    if best is None:
-        lines.append(
-            "verdict: no effect is supported — none lowers χ² by more than its Monte Carlo "
-            "noise with an F-test p below the family-wise level over the effects tried."
-        )
-    else:
-        lines.append(
-            f"verdict: {best.name} — χ² {best.chi2_without:.1f} → {best.chi2_with:.1f}, "
-            f"{100 * best.gap_closed:.0f} % of the excess misfit removed (p = {best.p_value:.2g})."
-        )
     lines += [f"warning: {w}" for w in diag.warnings]
     lines.append(f"seed {diag.seed}; {diag.wall_time:.0f} s")
     return "\n".join(lines)
