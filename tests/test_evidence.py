@@ -15,7 +15,7 @@ import rattlefit as rf
 from rattlefit import synthesize
 from rattlefit.diagnosis.evidence import findings
 from rattlefit.features.drift import drift_evidence, window_length
-from rattlefit.features.orders import contact_events, runout_evidence
+from rattlefit.features.orders import contact_events, drive_order_evidence, runout_evidence
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.physics import effects as fx
 
@@ -62,12 +62,13 @@ def test_a_clean_recording_gives_no_significant_finding(boundary_pair2):
     _, clean = boundary_pair2
     found = findings([clean], FAMILY)
     assert not any(f.significant for f in found), [f.as_dict() for f in found]
-    assert len(found) == 6  # run-out ×2, mesh order, tooth ×2, drift
+    assert len(found) == 7  # run-out ×2, mesh order, tooth ×2, drift, drive order
     assert {f.effect for f in found} == {
         "runout",
         "tooth_errors",
         "tooth_defect",
         "viscosity_drift",
+        "drive_ripple",
     }
 
 
@@ -121,3 +122,22 @@ def test_shared_recordings_run_out_is_found_and_nothing_else(name):
     named = {f.effect for f in found if f.significant}
     expected = {"runout"} if "runout" in truth["unmodelled_effects"] else set()
     assert named == expected, [f.as_dict() for f in found if f.significant]
+
+
+def test_a_ripple_of_the_primary_shaft_is_found_with_its_size(boundary_pair2):
+    # the clean recording's primary encoder with a twice-per-revolution angle ripple A added
+    # (counts rounded): the acceleration amplitude is (2 Ω)² A, and the clean encoder has none
+    import dataclasses
+
+    _, clean = boundary_pair2
+    assert not drive_order_evidence(clean).p_value < FAMILY / 7
+    ripple = 2e-3  # rad: (2 · 52.36 rad/s)² · 2e-3 rad = 21.9 rad/s², 2 % of 2π f ΔΩ
+    theta = clean.theta_primary
+    counts = clean.primary + np.round(
+        ripple * np.sin(2 * theta) * clean.counts_per_rev / (2 * np.pi)
+    )
+    rec = dataclasses.replace(clean, primary=counts.astype(clean.primary.dtype))
+    test = drive_order_evidence(rec)
+    assert test.p_value < 1e-6 and test.detail["order"] == 2
+    omega = rec.operating.drive_mean_speed_rad_s
+    assert test.amplitude == pytest.approx((2 * omega) ** 2 * ripple, rel=0.05)

@@ -11,12 +11,14 @@ rig. Each test points to one effect of the catalogue.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
 
 from ..features.drift import drift_evidence
 from ..features.orders import (
     AngleTest,
     contact_events,
+    drive_order_evidence,
     mesh_order_evidence,
     runout_evidence,
     tooth_evidence,
@@ -29,7 +31,16 @@ POINTS_TO = {
     "mesh_order": "tooth_errors",
     "tooth": "tooth_defect",
     "drift": "viscosity_drift",
+    "drive_order": "drive_ripple",
 }
+#: Effects that the encoders see directly (a kinematic error moves the flanks, a drive
+#: ripple moves the primary shaft): such an effect is named only when its model-free test
+#: finds it, never from the band spectrum alone, where a flexible candidate can absorb a
+#: model-form difference.
+ENCODER_VISIBLE = frozenset({"runout", "tooth_errors", "tooth_defect", "drive_ripple"})
+#: Smallest drive ripple worth naming, as a share of the speed fluctuation's acceleration
+#: amplitude 2π f ΔΩ.
+RELEVANT_RIPPLE_SHARE = 0.01
 #: Smallest pattern worth naming, as a gap error on the pitch circle (m): below about 2 µm
 #: of run-out or a tooth's deviation, gear quality classes do not tell gears apart. The
 #: drift test has no floor (its statistics are logarithms and shares).
@@ -64,13 +75,14 @@ class Finding:
 
 def recording_tests(recording: Recording) -> list[AngleTest]:
     """Every model-free test of one recording: run-out of each wheel, the mesh order, a
-    local tooth defect on each wheel, and drift."""
+    local tooth defect on each wheel, drift, and a ripple of the primary shaft."""
     events = contact_events(recording)
     return [
         *runout_evidence(recording, events),
         mesh_order_evidence(recording, events),
         *tooth_evidence(recording, events),
         drift_evidence(recording),
+        drive_order_evidence(recording),
     ]
 
 
@@ -79,14 +91,24 @@ def kind_of(test: AngleTest) -> str:
     return test.name.split(".", 1)[0]
 
 
+def relevant(test: AngleTest, recording: Recording) -> bool:
+    """The pattern is large enough to name (:data:`RELEVANT_SIZE_M`,
+    :data:`RELEVANT_RIPPLE_SHARE`)."""
+    kind = kind_of(test)
+    if kind == "drive_order":
+        op = recording.operating
+        floor = RELEVANT_RIPPLE_SHARE * 2 * math.pi * op.drive_frequency_hz
+        return test.amplitude >= floor * op.drive_speed_amplitude_rad_s
+    return test.amplitude >= RELEVANT_SIZE_M.get(kind, 0.0)
+
+
 def findings(recordings: Sequence[Recording], significance: float) -> list[Finding]:
     """Every test of every recording, each judged at ``significance`` over the number of
-    tests (Bonferroni) and against :data:`RELEVANT_SIZE_M`."""
+    tests (Bonferroni) and against the size worth naming (:func:`relevant`)."""
     tests = [(k, t) for k, rec in enumerate(recordings) for t in recording_tests(rec)]
     level = significance / max(len(tests), 1)
     out = []
     for k, test in tests:
-        kind = kind_of(test)
-        big = test.amplitude >= RELEVANT_SIZE_M.get(kind, 0.0)
-        out.append(Finding(k, test, POINTS_TO[kind], level, bool(test.p_value < level and big)))
+        named = test.p_value < level and relevant(test, recordings[k])
+        out.append(Finding(k, test, POINTS_TO[kind_of(test)], level, bool(named)))
     return out

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 
 from ..inference.result import FitResult
-from .evidence import Finding
+from .evidence import ENCODER_VISIBLE, Finding
 
 #: A band counts as missed when its standardised residual exceeds this (in σ).
 MISSED_Z = 3.0
@@ -99,11 +99,20 @@ class Diagnosis:
 
     def explaining(self) -> EffectOutcome | None:
         """The band candidate that explains the band gap: supported, leaving a misfit
-        consistent with noise (``p_after`` ≥ significance), the least misfit first; None
-        when there is no band gap or no candidate closes it."""
+        consistent with noise (``p_after`` ≥ significance), and, for an effect the encoders
+        see (:data:`~rattlefit.diagnosis.evidence.ENCODER_VISIBLE`), found by its model-free
+        test too; the least misfit first; None when there is no band gap or no candidate
+        closes it."""
         if not self.band_gap:
             return None
-        closing = [o for o in self.outcomes if o.supported and o.p_after >= self.significance]
+        seen = {f.effect for f in self.findings if f.significant}
+        closing = [
+            o
+            for o in self.outcomes
+            if o.supported
+            and o.p_after >= self.significance
+            and (o.name not in ENCODER_VISIBLE or o.name in seen)
+        ]
         return min(closing, key=lambda o: o.chi2_with) if closing else None
 
     @property
@@ -210,6 +219,8 @@ def finding_phrase(f: Finding) -> str:
     t = f.test
     if t.name == "drift":
         size = f"{t.detail.get('statistic')} changes by {t.amplitude:+.3g}"
+    elif t.name == "drive_order":
+        size = f"{t.amplitude:.3g} rad/s² at order {t.detail.get('order')}"
     else:
         size = f"{1e6 * t.amplitude:.1f} ± {1e6 * t.amplitude_sd:.1f} µm"
     return f"{f.effect} ({t.name}: {size}, p = {t.p_value:.2g})"

@@ -38,6 +38,8 @@ DRIVE_HARMONICS = 3
 OUTLIER_Z = 4.0
 #: A flank met fewer times than this is left out of the flank fit.
 MIN_FLANK_EVENTS = 60
+#: Orders of the primary shaft tested for a drive ripple.
+DRIVE_ORDERS = 4
 #: Decoy orders behind each inflation estimate, and their clearance from the orders where
 #: something is expected, in order resolutions (1 / revolutions recorded).
 DECOY_COUNT = 15
@@ -450,3 +452,56 @@ def tooth_evidence(recording: Recording, events: ContactEvents | None = None) ->
             )
         )
     return out
+
+
+def primary_residual(recording: Recording, n_harmonics: int) -> np.ndarray:
+    """The primary encoder's angle less its fit by a constant speed and ``n_harmonics``
+    harmonics of the drive frequency (:meth:`~rattlefit.physics.drive.Drive.fit`), rad."""
+    t = recording.time
+    k = np.arange(1, n_harmonics + 1)
+    phase = 2 * math.pi * recording.operating.drive_frequency_hz * np.outer(t, k)
+    x = np.column_stack([np.ones_like(t), t, np.cos(phase), np.sin(phase)])
+    coef, *_ = np.linalg.lstsq(x, recording.theta_primary, rcond=None)
+    return recording.theta_primary - x @ coef
+
+
+def order_chi2(residual: np.ndarray, theta: np.ndarray, orders) -> tuple[float, np.ndarray]:
+    """Wald χ² (OLS, white noise) of sinusoids of ``orders`` × ``theta`` in ``residual``,
+    and each order's amplitude (rad)."""
+    cols = [f(o * theta) for o in orders for f in (np.cos, np.sin)]
+    x = np.column_stack(cols)
+    coef, *_ = np.linalg.lstsq(x, residual, rcond=None)
+    res = residual - x @ coef
+    var = float(res @ res) / max(residual.size - x.shape[1], 1)
+    cov = var * np.linalg.pinv(x.T @ x)
+    chi2 = float(coef @ np.linalg.solve(cov, coef))
+    return chi2, np.hypot(coef[0::2], coef[1::2])
+
+
+def drive_order_evidence(recording: Recording, *, n_harmonics: int = 6) -> AngleTest:
+    """Speed ripple of the primary shaft at its orders 1–:data:`DRIVE_ORDERS` that a fit by
+    harmonics of the drive frequency does not hold (a drive ripple): the Wald χ² of those
+    orders in the primary encoder's residual (:func:`primary_residual`), divided by its
+    inflation at :func:`decoy_orders`; ``amplitude`` is the largest order's acceleration
+    amplitude (rad/s²) and ``detail`` the order."""
+    theta = recording.theta_primary
+    residual = primary_residual(recording, n_harmonics)
+    orders = np.arange(1, DRIVE_ORDERS + 1)
+    chi2, amps = order_chi2(residual, theta, orders)
+    dof = 2 * orders.size
+    decoys = [order_chi2(residual, theta, [o])[0] for o in decoy_orders(recording, "primary")]
+    lam = max(1.0, float(np.median(decoys)) / stats.chi2.median(2)) if decoys else 1.0
+    speed = recording.operating.drive_mean_speed_rad_s
+    acc = amps * (orders * speed) ** 2
+    worst = int(np.argmax(acc))
+    n = residual.size
+    sd = math.sqrt(2.0 / n) * float(np.std(residual)) * (orders[worst] * speed) ** 2
+    return AngleTest(
+        name="drive_order",
+        chi2=chi2 / lam,
+        dof=dof,
+        p_value=float(stats.chi2.sf(chi2 / lam, dof)),
+        amplitude=float(acc[worst]),
+        amplitude_sd=sd,
+        detail={"order": int(orders[worst]), "inflation": lam},
+    )

@@ -149,11 +149,12 @@ def format_diagnosis(diag: Diagnosis) -> str:
     lines.append(f"model-free tests (counted below p = {_level(diag):.2g} and the size floor):")
     for f in diag.findings:
         t = f.test
-        size = (
-            f"{t.amplitude:+.3g} ({t.detail.get('statistic')})"
-            if t.name == "drift"
-            else f"{1e6 * t.amplitude:.1f} ± {1e6 * t.amplitude_sd:.1f} µm"
-        )
+        if t.name == "drift":
+            size = f"{t.amplitude:+.3g} ({t.detail.get('statistic')})"
+        elif t.name == "drive_order":
+            size = f"{t.amplitude:.3g} rad/s² (order {t.detail.get('order')})"
+        else:
+            size = f"{1e6 * t.amplitude:.1f} ± {1e6 * t.amplitude_sd:.1f} µm"
         mark = "  ← " + f.effect if f.significant else ""
         lines.append(
             f"  recording {f.recording}: {t.name:18s} {size:24s} p = {t.p_value:.2g}{mark}"
