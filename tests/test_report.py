@@ -135,12 +135,14 @@ class _Page(HTMLParser):
     def __init__(self):
         super().__init__()
         self.images, self.links, self.rows, self.text = [], [], {}, []
+        self.alts = []
         self._row = None
 
     def handle_starttag(self, tag, attrs):
         a = dict(attrs)
         if tag == "img":
             self.images.append(a.get("src", ""))
+            self.alts.append(a.get("alt", ""))
         for key in ("src", "href", "action", "poster"):
             if key in a:
                 self.links.append(a[key])
@@ -371,6 +373,28 @@ def test_report_with_a_diagnosis_gives_verdict_misfit_and_missed_bands():
     text = " ".join(page.text)
     assert "drive_ripple explains the gap: χ² 80.0 → 33.5, 90 % of the excess misfit" in text
     assert "12.0–14.5 Hz, z = +4.2" in text
+    # a diagnosis with a verdict sentence and model-free findings: the sentence, the findings
+    # table, and the flank contacts of the recording
+    finding = {
+        "recording": 0,
+        "effect": "runout",
+        "level": 0.01 / 7,
+        "significant": True,
+        "name": "runout.secondary",
+        "chi2": 900.0,
+        "dof": 4,
+        "p_value": 1e-190,
+        "amplitude": 33.7e-6,
+        "amplitude_sd": 1.2e-6,
+        "detail": {},
+    }
+    diag |= {"verdict": "runout", "sentence": "Found runout (…).", "findings": [finding]}
+    page2 = _check_self_contained(html_report(fit=fit, diagnosis=diag))
+    text = " ".join(page2.text)
+    assert "runout: Found runout (…)." in text
+    assert "33.7 ± 1.2 µm" in text and "runout.secondary" in text
+    assert len(page2.images) == len(page.images)  # the flank figure is drawn in both
+    assert any("flank contacts" in alt for alt in page2.alts)
 
 
 def test_report_refuses_bad_inputs_naming_them(tmp_path):

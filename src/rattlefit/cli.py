@@ -451,7 +451,11 @@ def diagnose(
     options = DiagnoseOptions(effects=names, fit=fit_options, iterations=iterations)
     diag = run(recordings, options, progress=_progress(quiet))
     _emit(
-        format_diagnosis(diag), diag.to_json(), output, plot_dir, lambda d: plot_diagnosis(diag, d)
+        format_diagnosis(diag),
+        diag.to_json(),
+        output,
+        plot_dir,
+        lambda d: plot_diagnosis(diag, d, recordings=recordings),
     )
     _write_report(
         report_file,

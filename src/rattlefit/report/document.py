@@ -249,10 +249,42 @@ def _verdict(diag: dict) -> str:
     )
 
 
-def _diagnosis_section(diag: dict | None, paths: list[str]) -> str:
+def _findings_table(diag: dict, paths: list[str]) -> str:
+    rows = []
+    for f in diag.get("findings", []):
+        if f["name"] == "drift":
+            size = f"{f['amplitude']:+.3g} ({f['detail'].get('statistic')})"
+        elif f["name"] == "drive_order":
+            size = f"{f['amplitude']:.3g} rad/s² (order {f['detail'].get('order')})"
+        else:
+            size = f"{1e6 * f['amplitude']:.1f} ± {1e6 * f['amplitude_sd']:.1f} µm"
+        where = _name(paths[f["recording"]]) if f["recording"] < len(paths) else ""
+        rows.append(
+            f'<tr data-finding="{escape(f["name"])}"><td>{escape(where)}</td>'
+            f"<td>{escape(f['name'])}</td><td>{escape(f['effect'])}</td>"
+            f'<td class="num">{escape(size)}</td><td class="num">{f["p_value"]:.2g}</td>'
+            f"<td>{'yes' if f['significant'] else 'no'}</td></tr>"
+        )
+    if not rows:
+        return ""
+    head = (
+        "<tr><th>recording</th><th>test</th><th>points to</th><th>size</th><th>p</th>"
+        "<th>named</th></tr>"
+    )
+    level = diag["findings"][0]["level"]
+    return (
+        f"<p>Model-free tests of the recordings (named below p = {level:.2g} and the size "
+        f'worth naming):</p><table class="findings">{head}{"".join(rows)}</table>'
+    )
+
+
+def _diagnosis_section(diag: dict | None, paths: list[str], recordings) -> str:
     if diag is None:
         return ""
     parts = ["<h2>Diagnosis</h2>", f'<p class="verdict">{escape(_verdict(diag))}</p>']
+    parts.append(_findings_table(diag, paths))
+    for rec, path in zip(recordings, paths, strict=False):
+        parts.append(_img(figures.flanks(rec, _name(path)), f"flank contacts {_name(path)}"))
     head = (
         "<tr><th>effect</th><th>χ² without → with</th><th>gap closed</th><th>p</th>"
         "<th>supported</th><th>fitted size</th></tr>"
@@ -343,7 +375,7 @@ def html_report(
         _parameter_section(fit, lubrications),
         _spectra_section(fit, recs, paths),
         _posterior_section(posterior, idata, paths),
-        _diagnosis_section(diagnosis, paths),
+        _diagnosis_section(diagnosis, paths, recs),
     ]
     return (
         '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'

@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 
 from .explain import display_unit
-from .plots import _pyplot
+from .plots import _pyplot, draw_flanks
 from .tables import DISPLAY
 
 #: Seconds of the recording's Δθ* shown as a time history.
@@ -178,5 +178,15 @@ def residuals(diagnosis: dict, names: list[str], missed_z: float) -> bytes:
         ax.set_xlabel("band centre (Hz)")
         ax.set_title(f"{names[k]}: band residuals (shaded: within ±{missed_z:g} σ)", fontsize=10)
         ax.legend(fontsize=8)
+    fig.tight_layout()
+    return png(fig)
+
+
+def flanks(recording, title: str) -> bytes:
+    """The flank contacts of ``recording`` against each wheel's angle
+    (:func:`~rattlefit.report.plots.draw_flanks`)."""
+    fig, axes = _pyplot().subplots(1, 2, figsize=(11, 3.6))
+    draw_flanks(axes, recording)
+    fig.suptitle(f"{title}: flank contacts against wheel angle", fontsize=10)
     fig.tight_layout()
     return png(fig)

@@ -4,11 +4,18 @@ where a person would rather look than read."""
 from __future__ import annotations
 
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from ..diagnosis.result import MISSED_Z, Diagnosis
+from ..features.orders import (
+    contact_events,
+    flank_regression,
+    pitch_radius_driving,
+    wheel_terms,
+)
 from ..features.spectra import welch_psd
 from ..inference.posterior import Posterior
 from ..inference.result import FitResult
@@ -188,9 +195,42 @@ def plot_posterior(
     return out
 
 
-def plot_diagnosis(diag: Diagnosis, directory: str | Path, *, top: int = 3) -> list[Path]:
+def draw_flanks(axes, recording: Recording) -> None:
+    """On two axes, the flank contacts of ``recording`` (µm on the pitch circle) against the
+    driving and the driven wheel's angle, with each flank's fitted once-per-revolution
+    swing (:func:`~rattlefit.features.orders.flank_regression`): flat lines on a rig
+    without run-out, a sinusoid where a wheel runs out."""
+    ev = contact_events(recording)
+    fit = flank_regression(ev, recording, wheel_terms(ev))
+    scale = 1e6 * pitch_radius_driving(recording)
+    grid = np.linspace(0, 2 * np.pi, 181)
+    coef = dict(zip(fit.columns, fit.coef, strict=True))
+    for ax, wheel, label in zip(axes, ("primary", "secondary"), ("driving", "driven"), strict=True):
+        angle = np.mod(getattr(ev, f"theta_{wheel}"), 2 * np.pi)
+        for flank, tag, color in ((1, "upper", "C0"), (-1, "lower", "C1")):
+            on = (ev.flank == flank) & fit.kept
+            if f"offset.{tag}" not in coef:
+                continue
+            ax.plot(angle[on], scale * ev.position[on], ".", ms=2, color=color, alpha=0.4)
+            c, s = coef.get(f"{wheel}.{tag}.cos", 0.0), coef.get(f"{wheel}.{tag}.sin", 0.0)
+            swing = coef[f"offset.{tag}"] + c * np.cos(grid) + s * np.sin(grid)
+            ax.plot(grid, scale * swing, color=color, lw=1.5, label=f"{tag} flank")
+        ax.set_xlabel(f"{label} wheel angle (rad, from the encoder's zero)")
+        ax.set_ylabel("contact position (µm on the pitch circle)")
+        ax.legend(fontsize=8)
+
+
+def plot_diagnosis(
+    diag: Diagnosis,
+    directory: str | Path,
+    *,
+    top: int = 3,
+    recordings: Sequence[Recording] = (),
+) -> list[Path]:
     """Each recording's standardised band residuals without extra effects and with each of
-    the ``top`` effects that remove most misfit, over the χ² of every effect tried."""
+    the ``top`` effects that remove most misfit, over the χ² of every effect tried; and,
+    for each of ``recordings``, its flank contacts against each wheel's angle
+    (:func:`draw_flanks`)."""
     directory = Path(directory)
     n_rec = diag.residuals.shape[0]
     fig, axes = _pyplot().subplots(n_rec + 1, 1, figsize=(9, 3.2 * (n_rec + 1)), squeeze=False)
@@ -225,4 +265,11 @@ def plot_diagnosis(diag: Diagnosis, directory: str | Path, *, top: int = 3) -> l
     ax.set_ylabel("χ²")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    return [_save(fig, directory / "diagnosis.png")]
+    out = [_save(fig, directory / "diagnosis.png")]
+    for k, rec in enumerate(recordings):
+        fig, axes = _pyplot().subplots(1, 2, figsize=(12, 3.8))
+        draw_flanks(axes, rec)
+        fig.suptitle(f"{Path(rec.path or 'recording').name}: flank contacts against wheel angle")
+        fig.tight_layout()
+        out.append(_save(fig, directory / f"flanks_{k}_{Path(rec.path or 'recording').stem}.png"))
+    return out
