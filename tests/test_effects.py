@@ -94,12 +94,12 @@ def test_shaft_compliance_adds_its_deflection_in_series(pair2):
 V_IMPACT = 0.2  # m/s
 
 
-def _impact(pair2, effect, v0=V_IMPACT):
+def _impact(pair2, effect, v0=V_IMPACT, smoothing=None):
     """Released mid-gap at ``v0`` towards the coast flank with the primary at rest: dry, no
-    drag, constant mesh stiffness. Returns (q, v) sampled at 1 MHz for 6 ms."""
+    drag, constant mesh stiffness K(0). Returns (q, v) sampled at 1 MHz for 6 ms."""
     drive = rf.Drive(0.0, 8.0, [0.0], [0.0])
     params = rf.RattleParams(0.0, 0.0, 0.49, pair2.backlash)
-    model = rf.RattleModel.from_geometry(pair2)
+    model = rf.RattleModel.from_geometry(pair2, smoothing=smoothing)
     if effect is not None:
         model = model.with_effects(effect)
     sol = rf.simulate(model, params, drive, duration=6e-3, sample_rate=1e6, y0=[0.0, v0], **STEADY)
@@ -117,6 +117,31 @@ def test_flank_friction_gives_the_coulomb_restitution(pair2, mu):
     back = np.flatnonzero((np.arange(q.size) > np.argmax(q)) & (q < 0.5 * c))[0]
     restitution = -v[back] / V_IMPACT
     assert restitution == pytest.approx(math.sqrt((1 - mu) / (1 + mu)), rel=0.01)
+
+
+def _restitution(pair2, q, v):
+    """The rebound speed over the impact speed of an :func:`_impact`."""
+    c = 0.5 * pair2.backlash
+    assert q.max() > c  # it did hit the coast flank
+    back = np.flatnonzero((np.arange(q.size) > np.argmax(q)) & (q < 0.5 * c))[0]
+    return -v[back] / V_IMPACT
+
+
+@pytest.mark.parametrize("zeta", [0.05, 0.25])
+def test_mesh_damping_gives_the_spring_dashpot_restitution(pair2, zeta):
+    # A sharp linear contact with a dashpot in parallel, switched on and off at the flank, is
+    # half a period of a damped oscillator: e = exp(−ζ'π/√(1−ζ'²)). The primary at rest holds
+    # the spring at K(0), while c_m = 2ζ√(K̄ m) takes the mean stiffness K̄ over a mesh cycle,
+    # so against K(0) the damping ratio is ζ' = ζ√(K̄/K(0)).
+    sharp = rf.Smoothing(contact_width=1e-10)
+    model = rf.RattleModel.from_geometry(pair2, smoothing=sharp)
+    theta = np.linspace(0.0, pair2.base_pitch_angle, 4096, endpoint=False)
+    k_mean = float(np.mean(jax.vmap(model.mesh_stiffness)(jnp.asarray(theta))))
+    ratio = zeta * math.sqrt(k_mean / float(model.mesh_stiffness(0.0)))
+    assert ratio > 1.05 * zeta  # K(0) is the cycle's least stiffness: the ratio is seen
+    q, v = _impact(pair2, fx.MeshDamping(damping_ratio=zeta), smoothing=sharp)
+    expected = math.exp(-ratio * math.pi / math.sqrt(1 - ratio**2))
+    assert _restitution(pair2, q, v) == pytest.approx(expected, rel=1e-3)
 
 
 def test_speed_dependent_drag_relaxes_the_flight_speed_exponentially(pair2):

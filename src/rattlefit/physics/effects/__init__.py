@@ -26,6 +26,7 @@ from ...errors import RattlefitError
 from ..model import Effect
 from .drive_ripple import DriveRipple
 from .flank_friction import FlankFriction
+from .mesh_damping import MeshDamping
 from .runout import Runout
 from .shaft_compliance import ShaftCompliance
 from .speed_dependent_drag import SpeedDependentDrag
@@ -36,6 +37,7 @@ __all__ = [
     "EFFECTS",
     "DriveRipple",
     "FlankFriction",
+    "MeshDamping",
     "Runout",
     "ShaftCompliance",
     "SpeedDependentDrag",
@@ -57,6 +59,7 @@ EFFECTS: dict[str, type[Effect]] = {
         DriveRipple,
         ViscosityDrift,
         ShaftCompliance,
+        MeshDamping,
     )
 }
 
