@@ -144,6 +144,67 @@ def test_mesh_damping_gives_the_spring_dashpot_restitution(pair2, zeta):
     assert _restitution(pair2, q, v) == pytest.approx(expected, rel=1e-3)
 
 
+def test_pitch_point_friction_reverses_at_the_pitch_point(pair2):
+    # Resting on the drive flank, the contact force F balances the drag and the friction
+    # μ F g: F (1 + μ g) = T_b/r2, so q = −c − T_b / (r2 K(θ1) (1 + μ g(s))), with
+    # g(s) = tanh((s − s_p)/w) tanh(sin(πs)/(πw)) and s = θ1/Θp mod 1: the friction holds the
+    # driven wheel back (a deeper deflection) before the pitch point s_p and pulls it forward
+    # after it, reversing once per mesh cycle at s_p (and back at the hand-over, s = 0).
+    omega, mu, s_p, w, drag = 5.0, 0.3, 0.3, 0.05, 2.0  # slow: the wheel follows quasi-statically
+    drive = _steady_drive(omega)
+    params = rf.RattleParams(0.0, drag, 0.49, pair2.backlash)
+    model = rf.RattleModel.from_geometry(pair2, smoothing=RESTING)
+    friction = fx.PitchPointFriction(coefficient=mu, pitch_point=s_p, width=w)
+    c, force = 0.5 * pair2.backlash, drag / pair2.pitch_radius_driven
+
+    def g(theta1):
+        s = np.mod(theta1 / pair2.base_pitch_angle, 1.0)
+        return np.tanh((s - s_p) / w) * np.tanh(np.sin(np.pi * s) / (np.pi * w))
+
+    def resting(theta1, mu):
+        k = np.asarray([float(model.mesh_stiffness(x)) for x in np.atleast_1d(theta1)])
+        return -c - force / (k * (1 + mu * g(theta1)))
+
+    h = 1e-6  # rad: the resting curve's slope at θ1 = 0 gives the release velocity
+    v0 = omega * float(resting(h, mu)[0] - resting(-h, mu)[0]) / (2 * h)
+    sol = _resting(
+        model.with_effects(friction),
+        drive,
+        params,
+        duration=0.2,
+        rate=5000.0,
+        y0=[float(resting(0.0, mu)[0]), v0],
+    )
+    theta1, q = np.asarray(sol.theta1), np.asarray(sol.q)
+    np.testing.assert_allclose(q, resting(theta1, mu), rtol=0, atol=1e-9)
+    # the friction's share of the deflection: deeper before s_p, shallower after
+    share = q - resting(theta1, 0.0)
+    s = np.mod(theta1 / pair2.base_pitch_angle, 1.0)
+    assert np.abs(share).max() > 100 * 1e-9  # far above the tolerance
+    assert np.all(share[(s > 2 * w) & (s < s_p - 2 * w)] < 0)
+    assert np.all(share[(s > s_p + 2 * w) & (s < 1 - 2 * w)] > 0)
+    rising = np.flatnonzero((share[:-1] < 0) & (share[1:] >= 0))
+    cycles = np.floor(theta1 / pair2.base_pitch_angle - s_p)
+    assert rising.size == cycles[-1] - cycles[0] >= 2  # once per mesh cycle ...
+    assert np.all(
+        np.abs(s[rising] - s_p) < 2 * omega / 5000.0 / pair2.base_pitch_angle
+    )  # ... at s_p
+
+
+def test_pitch_point_friction_vanishes_apart(pair2):
+    # Out of contact F_mesh is zero, and so is the friction: the vector field is the plain one.
+    drive = _steady_drive()
+    params = rf.RattleParams(0.0, DRAG, 0.49, pair2.backlash)
+    model = rf.RattleModel.from_geometry(pair2)
+    rubbing = model.with_effects(fx.PitchPointFriction(coefficient=0.5))
+    c = 0.5 * pair2.backlash
+    for t in np.linspace(0.0, pair2.base_pitch_angle / 52.36, 7):
+        for q in (-0.9 * c, 0.0, 0.9 * c):
+            y = jnp.asarray([q, 0.05])
+            want = model.vector_field(t, y, (params, drive))
+            np.testing.assert_array_equal(rubbing.vector_field(t, y, (params, drive)), want)
+
+
 def test_speed_dependent_drag_relaxes_the_flight_speed_exponentially(pair2):
     # In free flight at constant primary speed, m v̇ = −T_b/r2 − k v / r2²:
     # v(t) = v∞ + (v0 − v∞) e^{−t/τ}, τ = m r2²/k, v∞ = −T_b r2 / k.

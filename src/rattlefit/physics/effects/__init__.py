@@ -27,6 +27,7 @@ from ..model import Effect
 from .drive_ripple import DriveRipple
 from .flank_friction import FlankFriction
 from .mesh_damping import MeshDamping
+from .pitch_point_friction import PitchPointFriction
 from .runout import Runout
 from .shaft_compliance import ShaftCompliance
 from .speed_dependent_drag import SpeedDependentDrag
@@ -38,6 +39,7 @@ __all__ = [
     "DriveRipple",
     "FlankFriction",
     "MeshDamping",
+    "PitchPointFriction",
     "Runout",
     "ShaftCompliance",
     "SpeedDependentDrag",
@@ -60,6 +62,7 @@ EFFECTS: dict[str, type[Effect]] = {
         ViscosityDrift,
         ShaftCompliance,
         MeshDamping,
+        PitchPointFriction,
     )
 }
 
