@@ -76,6 +76,34 @@ def test_tooth_errors_repeat_once_per_driving_tooth(pair2):
     np.testing.assert_allclose(np.asarray(moved.q) - np.asarray(plain.q), expected, atol=1e-8)
 
 
+def test_tooth_defect_moves_the_resting_flank_once_per_revolution(pair2):
+    # Resting on the drive flank under a steady drive, a notch of depth d on one driving tooth
+    # moves the flank, and the wheel with it, by −d·b(θ1): b the raised cosine over one base
+    # pitch about θ1 ≡ position (mod 2π), so only while that tooth is in mesh, once per
+    # revolution of the driving wheel, up to m·q̈/K (≈1e-9 m here). The flank retreats at
+    # most at d (π/L)² Ω²/2 ≈ 0.5 m/s², L = Θp/2, below the drag's 2.5 m/s²: the wheel follows.
+    omega, depth, position, atol = 52.36, 1e-6, 2.0, 1e-8
+    drive = _steady_drive(omega)
+    params = rf.RattleParams(0.0, DRAG, 0.49, pair2.backlash)
+    model = rf.RattleModel.from_geometry(pair2, smoothing=RESTING)
+    q0 = float(_static(pair2, model, 0.0)[0])
+    opts = dict(duration=0.3, rate=20000.0, y0=[q0, 0.0])
+    plain = _resting(model, drive, params, **opts)
+    defect = fx.ToothDefect(depth=depth, position=position)
+    moved = _resting(model.with_effects(defect), drive, params, **opts)
+    theta1 = np.asarray(plain.theta1)
+    x = np.mod(theta1 - position + np.pi, 2 * np.pi) - np.pi
+    half = 0.5 * pair2.base_pitch_angle
+    bump = np.where(np.abs(x) < half, 0.5 * (1 + np.cos(np.pi * x / half)), 0.0)
+    shift = np.asarray(moved.q) - np.asarray(plain.q)
+    np.testing.assert_allclose(shift, -depth * bump, rtol=0, atol=atol)
+    # met once in each of the 2.5 revolutions, at the defect tooth only
+    revolution = np.round((theta1 - position) / (2 * np.pi))
+    assert np.unique(revolution[bump > 0.5]).size == 3
+    assert np.all(np.abs(shift[bump == 0.0]) < atol)
+    assert np.abs(shift).max() > 0.99 * depth
+
+
 def test_shaft_compliance_adds_its_deflection_in_series(pair2):
     # Two springs in series under the drag force F = T_b/r2: q + c = −F (1/K(θ1) + compliance).
     drive = _steady_drive()

@@ -31,6 +31,7 @@ from .pitch_point_friction import PitchPointFriction
 from .runout import Runout
 from .shaft_compliance import ShaftCompliance
 from .speed_dependent_drag import SpeedDependentDrag
+from .tooth_defect import ToothDefect
 from .tooth_errors import ToothErrors
 from .viscosity_drift import ViscosityDrift
 
@@ -43,6 +44,7 @@ __all__ = [
     "Runout",
     "ShaftCompliance",
     "SpeedDependentDrag",
+    "ToothDefect",
     "ToothErrors",
     "ViscosityDrift",
     "absent",
@@ -63,6 +65,7 @@ EFFECTS: dict[str, type[Effect]] = {
         ShaftCompliance,
         MeshDamping,
         PitchPointFriction,
+        ToothDefect,
     )
 }
 
