@@ -67,7 +67,7 @@ def test_diagnose_names_withheld_flank_friction_and_sizes_it(tmp_path):
     path = tmp_path / "dry_friction.h5"
     write_recording(rec, path, extra_attrs=truth)
     out, plots = tmp_path / "diagnosis.json", tmp_path / "plots"
-    args = ["diagnose", str(path), "--effects", ",".join(TRIED), "-q"]
+    args = ["diagnose", str(path), "--effects", ",".join(TRIED), "--every-effect", "-q"]
     result = CliRunner().invoke(main, [*args, "-o", str(out), "--plot", str(plots)])
     assert result.exit_code == 0, result.output
     assert "verdict: flank_friction" in result.output
@@ -106,8 +106,11 @@ def test_diagnose_supports_nothing_when_nothing_is_withheld():
     op = OperatingPoint("boundary", 20.0, 52.36, 5.236, 8.0)
     p = rf.RattleParams(0.085e-3, 0.025, 0.4942, g.backlash)
     rec, _ = synthesize(g, op, p, seed=MILD_RECORDING_SEED)
-    diag = diagnose([rec], DiagnoseOptions(effects=TRIED, fit=FitOptions.quick()))
-    assert diag.verdict is None, [(o.name, o.chi2_without, o.chi2_with) for o in diag.outcomes]
+    options = DiagnoseOptions(effects=TRIED, fit=FitOptions.quick(), every_effect=True)
+    diag = diagnose([rec], options)
+    assert diag.verdict.kind == "none", [
+        (o.name, o.chi2_without, o.chi2_with) for o in diag.outcomes
+    ]
     assert len(diag.outcomes) == len(TRIED)
     for o in diag.outcomes:
         assert o.p_value > FAMILY_P / len(TRIED) or o.delta_chi2 < o.noise_threshold
@@ -116,7 +119,7 @@ def test_diagnose_supports_nothing_when_nothing_is_withheld():
             assert lo <= o.values[field] <= hi and o.units[field] == unit
     doc = diag.to_json()
     json.dumps(doc)
-    assert doc["verdict"] is None and doc["seed"] == 0
+    assert doc["verdict"] == "none" and doc["seed"] == 0
 
 
 def test_screen_points_try_each_field_alone_and_together_with_less_film_and_drag():

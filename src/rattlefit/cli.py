@@ -420,13 +420,29 @@ def sample(
     show_default=True,
     help="Gauss–Newton iterations per effect.",
 )
+@click.option(
+    "--every-effect",
+    is_flag=True,
+    help="Fit every effect to the band spectrum, also those the encoders show no sign of and "
+    "when the model fits within its noise (they cannot be named; by default they are skipped).",
+)
 @_output_options("the diagnosis", "the band residuals with and without each effect")
 @_report_option("the diagnosis and the identification it starts from")
 @_prior_option
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
 @_clean_errors
 def diagnose(
-    files, effects, seed, quick_fit, iterations, output, plot_dir, report_file, priors, quiet
+    files,
+    effects,
+    seed,
+    quick_fit,
+    iterations,
+    every_effect,
+    output,
+    plot_dir,
+    report_file,
+    priors,
+    quiet,
 ):
     """Where the model misses the recordings, which unmodelled effect explains it, and how
     much of the misfit it removes (each effect fitted on top of an identification)."""
@@ -448,7 +464,9 @@ def diagnose(
     recordings = [read_recording(f) for f in files]
     make = FitOptions.quick if quick_fit else FitOptions.optimum_only
     fit_options = make(seed=seed, priors=_priors(priors))
-    options = DiagnoseOptions(effects=names, fit=fit_options, iterations=iterations)
+    options = DiagnoseOptions(
+        effects=names, fit=fit_options, iterations=iterations, every_effect=every_effect
+    )
     diag = run(recordings, options, progress=_progress(quiet))
     _emit(
         format_diagnosis(diag),

@@ -25,7 +25,8 @@ starts from an identification (:func:`~rattlefit.inference.identify.identify`) a
    (χ² − dof) that the effect removes.
 
 The verdict (:class:`~rattlefit.diagnosis.result.Verdict`) is ``"none"`` when the model
-without extra effects fits the band spectrum (χ² p ≥ ``significance``) and no model-free
+without extra effects fits the band spectrum (its χ² after the re-fit, on the fresh
+realisations, has p ≥ ``significance``) and no model-free
 test stands out; the effects that significant model-free tests point to are named; a band
 candidate is named when it is supported and leaves a misfit consistent with noise; a
 significant gap that nothing explains is ``"unexplained"``.
@@ -62,7 +63,7 @@ from ..io.recording import Recording
 from ..physics.effects import EFFECTS, absent, effect_class
 from ..reproducibility import platform_info
 from ..util import stamped
-from .evidence import findings
+from .evidence import ENCODER_VISIBLE, findings
 from .result import Diagnosis, EffectOutcome, baseline_warnings, finding_phrase, gap_closed
 from .screening import FREE_FACTORS, effect_specs, free_alternatives, screen_points
 
@@ -81,7 +82,11 @@ class DiagnoseOptions:
     iterations : Gauss–Newton iterations per effect.
     n_final : realisations behind each final χ² (default: the fit's covariance count).
     significance : family-wise level: an effect counts as supported when its F-test p is
-        below ``significance / len(effects)`` (Bonferroni).
+        below ``significance`` over the number of effects fitted (Bonferroni); the
+        model-free tests share it likewise, and the band gap is tested at it.
+    every_effect : fit every effect to the band spectrum, also those the encoders show no
+        sign of and when the model without effects fits within its noise (by default they
+        are skipped: they could not be named).
     """
 
     effects: tuple[str, ...] = tuple(EFFECTS)
@@ -89,6 +94,7 @@ class DiagnoseOptions:
     iterations: int = 3
     n_final: int | None = None
     significance: float = 0.01
+    every_effect: bool = False
 
     def __post_init__(self):
         for name in self.effects:
@@ -258,13 +264,16 @@ def candidate_problem(problem: Problem, names) -> tuple[Problem, dict[str, list[
 
 
 def trial_of(
-    recordings: Sequence[Recording], baseline: FitResult, options: DiagnoseOptions
+    recordings: Sequence[Recording],
+    baseline: FitResult,
+    options: DiagnoseOptions,
+    names: Sequence[str] | None = None,
 ) -> Trial:
-    """The :class:`Trial` of ``baseline``: its problem with every candidate of ``options``,
-    noise model and fresh release states (seeded from the fit's seed + 1) for the final
-    comparison."""
+    """The :class:`Trial` of ``baseline``: its problem with the candidates ``names`` (default:
+    every effect of ``options``), noise model and fresh release states (seeded from the fit's
+    seed + 1) for the final comparison."""
     base = baseline.problem_for(recordings)
-    problem, candidates = candidate_problem(base, options.effects)
+    problem, candidates = candidate_problem(base, options.effects if names is None else names)
     fit_options = baseline.options
     n_final = options.n_final or fit_options.n_covariance_realisations
     y0 = release_states(base, baseline.z, n_final, np.random.default_rng(fit_options.seed + 1))
@@ -279,6 +288,45 @@ def trial_of(
         nuisances,
         candidates,
     )
+
+
+def in_program(options: DiagnoseOptions, seen: set[str]) -> tuple[str, ...]:
+    """The candidates the compiled program holds: every effect of ``options`` but those the
+    encoders see and did not (:data:`~rattlefit.diagnosis.evidence.ENCODER_VISIBLE`), unless
+    ``options.every_effect``."""
+    if options.every_effect:
+        return options.effects
+    return tuple(n for n in options.effects if n not in ENCODER_VISIBLE or n in seen)
+
+
+def effects_to_try(
+    options: DiagnoseOptions, seen: set[str], band_gap: bool
+) -> tuple[list[str], dict[str, str]]:
+    """The effects fitted to the band spectrum, and why each other one is not: an effect the
+    encoders see is named only when they see it, and a band candidate only explains a
+    significant band gap (unless ``options.every_effect``)."""
+    tried, skipped = [], {}
+    for name in options.effects:
+        if options.every_effect:
+            tried.append(name)
+        elif name in ENCODER_VISIBLE and name not in seen:
+            skipped[name] = "the encoders show no sign of it"
+        elif name not in ENCODER_VISIBLE and not band_gap:
+            skipped[name] = "the model without effects fits the band spectrum within its noise"
+        else:
+            tried.append(name)
+    return tried, skipped
+
+
+def try_effects(trial: Trial, names, z_base, chi2_without, significance, say):
+    """Each effect of ``names`` fitted and judged (:func:`try_effect`) at ``significance``
+    over their number (Bonferroni), the least misfit left first."""
+    level = significance / max(len(names), 1)
+    outcomes = []
+    for n, name in enumerate(names):
+        say(f"effect {n + 1}/{len(names)}: {name} — screening …")
+        outcomes.append(try_effect(trial, name, z_base, chi2_without, level, say))
+    return sorted(outcomes, key=lambda o: o.chi2_with)
 
 
 def diagnose(
@@ -312,7 +360,8 @@ def diagnose(
             f"diagnose: the baseline fit is of {baseline.recordings}, not of "
             f"{[str(r.path) for r in recordings]}"
         )
-    trial = trial_of(recordings, baseline, options)
+    seen = {f.effect for f in found if f.significant}
+    trial = trial_of(recordings, baseline, options, in_program(options, seen))
     z_absent = np.concatenate(
         [baseline.z, np.full(len(trial.problem.specs) - len(baseline.z), -Z_END)]
     )
@@ -321,12 +370,11 @@ def diagnose(
     warnings = baseline_warnings(baseline.success, cost_identified, refit_cost)
     for w in warnings:
         say("  warning: " + w)
-    level = options.significance / len(options.effects)  # Bonferroni over the effects tried
-    outcomes = []
-    for n, name in enumerate(options.effects):
-        say(f"effect {n + 1}/{len(options.effects)}: {name} — screening …")
-        outcomes.append(try_effect(trial, name, z_base, chi2_without, level, say))
-    outcomes.sort(key=lambda o: o.chi2_with)  # the least misfit left first (module docstring)
+    gap = stats.chi2.sf(chi2_without, trial.dof) < options.significance
+    tried, skipped = effects_to_try(options, seen, gap)
+    for name, why in skipped.items():
+        say(f"not fitting {name}: {why}")
+    outcomes = try_effects(trial, tried, z_base, chi2_without, options.significance, say)
     bands = trial.problem.bands
     wall = time.perf_counter() - t_start
     say(f"done in {wall:.0f} s")
@@ -342,5 +390,7 @@ def diagnose(
         warnings=tuple(warnings),
         findings=tuple(found),
         significance=options.significance,
+        chi2_without=chi2_without,
+        skipped=skipped,
         platform=platform,
     )

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from scipy import stats
 
 from ..inference.result import FitResult
 from .evidence import ENCODER_VISIBLE, Finding
@@ -76,6 +77,11 @@ class Diagnosis:
     findings: tuple[Finding, ...] = ()
     #: the family-wise level of the diagnosis (:attr:`DiagnoseOptions.significance`)
     significance: float = 0.01
+    #: χ² of the model without effects after the re-fit, on the fresh realisations of the
+    #: effects' comparison (NaN: not measured; the identification's χ² is used instead)
+    chi2_without: float = float("nan")
+    #: effects not fitted to the band spectrum, and why
+    skipped: dict[str, str] = dataclasses.field(default_factory=dict)
     #: what a seeded result depends on (:func:`~rattlefit.reproducibility.platform_info`),
     #: captured when the diagnosis ran
     platform: dict = dataclasses.field(default_factory=dict, compare=False)
@@ -92,10 +98,20 @@ class Diagnosis:
         return out
 
     @property
+    def gap_chi2(self) -> tuple[float, int, float]:
+        """χ², dof and p of the model without extra effects: after the re-fit, on the fresh
+        realisations every effect is judged on (the identification's own when not
+        measured)."""
+        dof = self.baseline.dof
+        if np.isfinite(self.chi2_without):
+            return self.chi2_without, dof, float(stats.chi2.sf(self.chi2_without, dof))
+        return self.baseline.chi2, dof, self.baseline.p_value
+
+    @property
     def band_gap(self) -> bool:
-        """The model without extra effects misses the band spectrum: its χ² has p below the
-        significance."""
-        return bool(self.baseline.p_value < self.significance)
+        """The model without extra effects misses the band spectrum: its χ² (:attr:`gap_chi2`)
+        has p below the significance."""
+        return bool(self.gap_chi2[2] < self.significance)
 
     def explaining(self) -> EffectOutcome | None:
         """The band candidate that explains the band gap: supported, leaving a misfit
@@ -128,9 +144,11 @@ class Diagnosis:
             "verdict_effects": list(v.effects),
             "sentence": v.sentence,
             "band_gap": v.band_gap,
+            "gap_chi2": dict(zip(("chi2", "dof", "p_value"), self.gap_chi2, strict=True)),
             "band_gap_explained": v.band_gap_explained,
             "significance": self.significance,
             "findings": [f.as_dict() for f in self.findings],
+            "skipped": dict(self.skipped),
             "baseline": {
                 "chi2": self.baseline.chi2,
                 "dof": self.baseline.dof,
@@ -229,13 +247,13 @@ def finding_phrase(f: Finding) -> str:
 def verdict_of(diag: Diagnosis) -> Verdict:
     """The :class:`Verdict` of ``diag``: effects named by significant model-free findings,
     then the band candidate that explains the band gap (:meth:`Diagnosis.explaining`)."""
-    fit = diag.baseline
+    chi2, dof, p = diag.gap_chi2
     found = found_effects(diag.findings)
     closing = diag.explaining()
     names = [name for name, _ in found]
     if closing is not None and closing.name not in names:
         names.append(closing.name)
-    fit_words = f"χ² {fit.chi2:.1f} on {fit.dof} dof, p = {fit.p_value:.2g}"
+    fit_words = f"χ² {chi2:.1f} on {dof} dof, p = {p:.2g}"
     if not names and not diag.band_gap:
         kind = "none"
         sentence = (

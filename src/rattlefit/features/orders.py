@@ -38,6 +38,8 @@ DRIVE_HARMONICS = 3
 OUTLIER_Z = 4.0
 #: A flank met fewer times than this is left out of the flank fit.
 MIN_FLANK_EVENTS = 60
+#: A tooth met fewer times than this (contacts kept by the flank fit) is not tested.
+MIN_TOOTH_EVENTS = 3
 #: Orders of the primary shaft tested for a drive ripple.
 DRIVE_ORDERS = 4
 #: Decoy orders behind each inflation estimate, and their clearance from the orders where
@@ -163,11 +165,10 @@ def cluster_covariance(x: np.ndarray, residuals: np.ndarray, clusters: np.ndarra
     small-sample factor G/(G−1)·(n−1)/(n−P)."""
     n, p = x.shape
     bread = np.linalg.pinv(x.T @ x)
-    groups = np.unique(clusters)
-    meat = np.zeros((p, p))
-    for g in groups:
-        s = x[clusters == g].T @ residuals[clusters == g]
-        meat += np.outer(s, s)
+    groups, inverse = np.unique(clusters, return_inverse=True)
+    scores = np.zeros((groups.size, p))
+    np.add.at(scores, inverse, x * residuals[:, None])
+    meat = scores.T @ scores
     g = groups.size
     factor = g / max(g - 1, 1) * (n - 1) / max(n - p, 1)
     return factor * bread @ meat @ bread
@@ -400,6 +401,8 @@ def tooth_offsets(events: ContactEvents, recording: Recording, wheel: str, order
     b = np.concatenate([[-fit.coef[i].sum()], fit.coef[i]])
     contrast = np.vstack([-np.ones(i.size), np.eye(i.size)])
     sd = np.sqrt(np.einsum("ij,jk,ik->i", contrast, fit.covariance[np.ix_(i, i)], contrast))
+    seen = np.bincount(index[fit.kept], minlength=teeth)
+    sd[seen < MIN_TOOTH_EVENTS] = np.inf  # a tooth met too rarely has no offset to test
     return b, sd
 
 
@@ -411,7 +414,7 @@ def wheel_teeth(recording: Recording, wheel: str) -> int:
 
 def max_t2(b: np.ndarray, sd: np.ndarray) -> tuple[float, int]:
     """The largest squared t over the teeth, and which tooth."""
-    t2 = (b / np.maximum(sd, 1e-300)) ** 2
+    t2 = np.where(np.isfinite(sd), b / np.maximum(sd, 1e-300), 0.0) ** 2
     worst = int(np.argmax(t2))
     return float(t2[worst]), worst
 

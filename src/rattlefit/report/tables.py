@@ -195,6 +195,7 @@ def format_diagnosis(diag: Diagnosis) -> str:
     table = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
     table.insert(1, "  ".join("-" * w for w in widths))
     lines += ["", *table, ""]
+    lines += [f"not fitted: {name} ({why})" for name, why in diag.skipped.items()]
     lines += [f"warning: {w}" for w in diag.warnings]
     lines.append(f"seed {diag.seed}; {diag.wall_time:.0f} s")
     return "\n".join(lines)

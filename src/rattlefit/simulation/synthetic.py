@@ -10,14 +10,16 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+import jax.numpy as jnp
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import RattlefitError
 from ..io.recording import GearPairSpec, OilSpec, OperatingPoint, Recording
 from ..physics.drive import Drive
 from ..physics.geometry import GearGeometry, table2_pair
 from ..physics.model import PARAM_UNITS, Effect, RattleModel, RattleParams
-from .solve import encoder_counts, raise_if_failed, simulate
+from .solve import Solution, encoder_counts, raise_if_failed, simulate
 
 #: The seed paper's oil, Table 3.
 PAPER_OIL = OilSpec(viscosity_40c_cst=156.5, viscosity_100c_cst=15.7, density_kg_m3=890.0)
@@ -40,6 +42,61 @@ def gear_pair_spec(geometry: GearGeometry) -> GearPairSpec:
         center_distance_mm=geometry.center_distance * mm,
         angular_backlash_rad=geometry.angular_backlash,
         angular_backlash_std_rad=geometry.angular_backlash_std,
+    )
+
+
+def recording_from_trajectory(
+    geometry: GearGeometry,
+    operating: OperatingPoint,
+    theta1: ArrayLike,
+    q: ArrayLike,
+    *,
+    oil: OilSpec = PAPER_OIL,
+    sample_rate: float = 10_000.0,
+    counts_per_rev: int = 40_000,
+    zeros: Sequence[int] = (0, 0),
+    title: str = "",
+) -> Recording:
+    """The recording the rig's two encoders latch along a trajectory of the gear pair.
+
+    ``theta1`` is the primary shaft's angle θ1 (rad) and ``q`` the relative displacement
+    r2·θ2 − r1·θ1 on the pitch circle (m), both shape (N,) at the sample times
+    k / ``sample_rate`` (Hz), from any solver (:func:`~rattlefit.simulation.solve.simulate`,
+    :func:`~rattlefit.simulation.reference.simulate_reference`, ...). Each shaft's angle is
+    quantised to ``counts_per_rev`` counts per revolution by
+    :func:`~rattlefit.simulation.solve.encoder_counts`, and ``zeros`` (primary, secondary; in
+    counts) are added as the encoders' arbitrary zeros. ``/gear_pair`` is the geometry's
+    (:func:`gear_pair_spec`); ``operating`` and ``oil`` are written as given.
+    """
+    model = RattleModel.from_geometry(geometry)
+    q = jnp.asarray(q, dtype=float)
+    theta1 = jnp.asarray(theta1, dtype=float)
+    if q.ndim != 1 or q.shape != theta1.shape:
+        raise RattlefitError(
+            f"recording_from_trajectory: q {q.shape} and theta1 {theta1.shape} must be two "
+            "1-D arrays of the same length"
+        )
+    # the encoders read θ1 and q only; the trajectory's velocity is not needed
+    trajectory = Solution(
+        time=jnp.arange(q.size) / float(sample_rate),
+        q=q,
+        velocity=jnp.zeros_like(q),
+        relative_motion=-q / model.r1,
+        theta1=theta1,
+        result=jnp.zeros((), dtype=int),
+        num_steps=jnp.zeros((), dtype=int),
+    )
+    primary, secondary = encoder_counts(trajectory, model, counts_per_rev=counts_per_rev)
+    zero_primary, zero_secondary = (int(z) for z in zeros)
+    return Recording(
+        primary=primary + zero_primary,
+        secondary=secondary + zero_secondary,
+        sample_rate_hz=float(sample_rate),
+        counts_per_rev=int(counts_per_rev),
+        gear_pair=gear_pair_spec(geometry),
+        operating=operating,
+        oil=oil,
+        title=title,
     )
 
 
@@ -93,16 +150,15 @@ def synthesize(
             y0=y0,
         )
     )
-    primary, secondary = encoder_counts(sol, model, counts_per_rev=counts_per_rev)
-    zeros = rng.integers(-(10**6), 10**6, size=2)
-    rec = Recording(
-        primary=primary + zeros[0],
-        secondary=secondary + zeros[1],
-        sample_rate_hz=float(sample_rate),
-        counts_per_rev=int(counts_per_rev),
-        gear_pair=gear_pair_spec(geometry),
-        operating=operating,
+    rec = recording_from_trajectory(
+        geometry,
+        operating,
+        sol.theta1,
+        sol.q,
         oil=oil,
+        sample_rate=sample_rate,
+        counts_per_rev=counts_per_rev,
+        zeros=rng.integers(-(10**6), 10**6, size=2),
         title=title or "rattlefit synthetic recording",
     )
     truth: dict[str, float | int | str] = {

@@ -1,0 +1,151 @@
+"""How often `diagnose` is right: false positives on clean recordings, and the confusion
+matrix on recordings with an effect written in another form than the catalogue's.
+
+The cases are the independent simulator's recordings in ``../shared/recordings/`` (with their
+truth) and the sets of ``benchmarks/diagnose_sets.py`` (clean recordings whose model form
+differs from rattlefit's fitted one; recordings with an injected effect of another form).
+Each case lists the verdicts that count as right: ``none`` or ``unexplained`` for a clean
+recording, the effect (or, for dissipation in contact, any of the dissipative candidates)
+otherwise.
+
+    python benchmarks/diagnose_study.py [--sets shared,clean,injected] [--full]
+                                        [--only NAME ...] [--json out.json] [--quiet]
+
+Without ``--full`` only the model-free tests run (seconds per recording): the verdict is what
+they name, or ``none``; that measures the angle- and time-domain tests' false-positive rate
+and their hits. With ``--full`` each case gets a whole diagnosis with every candidate
+(minutes each). Seeds: the diagnosis' fit seed is 0 for every case; the sets are built from
+their own fixed seeds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections import Counter
+from pathlib import Path
+
+import rattlefit as rf
+from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
+from rattlefit.diagnosis.evidence import findings
+from studies import write_json
+
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "recordings"
+#: The dissipation-in-contact class: any of these names dissipation in contact rightly.
+DISSIPATION = ("flank_friction", "mesh_damping", "pitch_point_friction")
+CLEAN = ("none", "unexplained")
+#: The shared truth's effect names, as the verdicts that count as right.
+SHARED_EXPECTED = {"runout": ("runout",), "sliding_friction": DISSIPATION}
+FAMILY = 0.01  # the diagnosis' default family-wise level
+
+
+def shared_cases() -> list[dict]:
+    """The shared recordings (3 s and long) with their expected verdicts."""
+    path = SHARED / "truth.json"
+    if not path.is_file():
+        return []
+    out = []
+    for name, truth in sorted(json.loads(path.read_text()).items()):
+        file = next(SHARED.glob(f"**/{name}.h5"), None)
+        if file is None:
+            continue
+        effects = truth["unmodelled_effects"]
+        expected = CLEAN if not effects else SHARED_EXPECTED[effects[0]]
+        out.append({"name": name, "path": str(file), "set": "shared", "expected": list(expected)})
+    return out
+
+
+def set_cases(which: str) -> list[dict]:
+    """The cases of ``diagnose_sets``' set ``which`` (built first if missing)."""
+    import diagnose_sets
+
+    build = {"clean": diagnose_sets.clean_set, "injected": diagnose_sets.injected_set}[which]
+    kwargs = {"include_shared": False} if which == "clean" else {}
+    return [
+        {
+            "name": Path(path).stem,
+            "path": str(path),
+            "set": which,
+            "expected": list(truth["expected"]),
+        }
+        for path, truth in build(**kwargs)
+    ]
+
+
+def model_free_verdict(recording) -> tuple[str, list[dict]]:
+    """The verdict of the model-free tests alone: what they name, or ``none``."""
+    found = findings([recording], FAMILY)
+    named = []
+    for f in sorted(found, key=lambda f: f.test.p_value):
+        if f.significant and f.effect not in named:
+            named.append(f.effect)
+    return "+".join(named) or "none", [f.as_dict() for f in found if f.significant]
+
+
+def right(verdict: str, expected: list[str]) -> bool:
+    """The verdict is one of the expected ones (a combination in any order)."""
+    have = set(verdict.split("+"))
+    return any(set(e.split("+")) == have for e in expected)
+
+
+def run_case(case: dict, full: bool, say) -> dict:
+    rec = rf.read_recording(case["path"])
+    t0 = time.perf_counter()
+    if full:
+        diag = diagnose([rec], DiagnoseOptions(), progress=None)
+        verdict, detail = diag.verdict.label, {"sentence": diag.verdict.sentence}
+    else:
+        verdict, detail = model_free_verdict(rec)
+    wall = time.perf_counter() - t0
+    ok = right(verdict, case["expected"])
+    mark = "right" if ok else "WRONG"
+    say(f"{case['set']:8s} {case['name']:45s} {verdict:28s} {mark} ({wall:.0f} s)")
+    return case | {"verdict": verdict, "right": ok, "wall_s": round(wall, 1), "detail": detail}
+
+
+def summary(rows: list[dict]) -> dict:
+    """False-positive rate on the clean cases, right rate on the effect cases, confusion."""
+    clean = [r for r in rows if r["expected"] == list(CLEAN)]
+    effect = [r for r in rows if r["expected"] != list(CLEAN)]
+    confusion = Counter((("clean" if r in clean else r["expected"][0]), r["verdict"]) for r in rows)
+    return {
+        "clean_cases": len(clean),
+        "false_positives": sum(not r["right"] for r in clean),
+        "false_positive_rate": sum(not r["right"] for r in clean) / max(len(clean), 1),
+        "effect_cases": len(effect),
+        "effect_right": sum(r["right"] for r in effect),
+        "effect_right_rate": sum(r["right"] for r in effect) / max(len(effect), 1),
+        "confusion": [
+            {"truth": t, "verdict": v, "count": n} for (t, v), n in sorted(confusion.items())
+        ],
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sets", default="shared,clean,injected")
+    ap.add_argument("--full", action="store_true")
+    ap.add_argument("--only", nargs="*")
+    ap.add_argument("--json")
+    ap.add_argument("--quiet", action="store_true")
+    args = ap.parse_args()
+    say = (lambda s: None) if args.quiet else (lambda s: print(s, flush=True))
+    cases = []
+    for which in args.sets.split(","):
+        cases += shared_cases() if which == "shared" else set_cases(which)
+    if args.only:
+        cases = [c for c in cases if c["name"] in args.only]
+    rows = [run_case(c, args.full, say) for c in cases]
+    result = summary(rows)
+    say(json.dumps({k: v for k, v in result.items() if k != "confusion"}, indent=1))
+    for c in result["confusion"]:
+        say(f"  {c['truth']:28s} → {c['verdict']:28s} {c['count']}")
+    if args.json:
+        write_json(
+            args.json, {"mode": "full" if args.full else "model-free", **result, "cases": rows}
+        )
+
+
+if __name__ == "__main__":
+    main()
