@@ -114,8 +114,11 @@ class Trial:
         degrees of freedom.
     y0 : fresh release states of the final comparison.
     iterations : Gauss–Newton iterations per fit.
-    nuisances : coordinates never re-fitted (the parameters with a prior).
+    nuisances : coordinates never re-fitted: the parameters with a prior, and the film
+        half-length of dry recordings, held at its dry end (dry flanks have no oil film, and
+        a film fitted to them would absorb dissipation that is in the contact).
     candidates : each effect's coordinates in ``problem``.
+    dry : the film coordinates of dry recordings (part of ``nuisances``).
     """
 
     problem: Problem
@@ -126,6 +129,13 @@ class Trial:
     iterations: int
     nuisances: list[int]
     candidates: dict[str, list[int]]
+    dry: list[int] = dataclasses.field(default_factory=list)
+
+    def dried(self, zs: np.ndarray) -> np.ndarray:
+        """``zs`` (…, P) with the dry recordings' film half-lengths at their dry end."""
+        zs = np.array(zs, dtype=float, copy=True)
+        zs[..., self.dry] = -Z_END
+        return zs
 
     def held(self, name: str | None = None) -> list[int]:
         """Coordinates held fixed in a fit of effect ``name`` (None: of no effect): the
@@ -170,7 +180,7 @@ def refit_without_effects(trial: Trial, z, say) -> tuple[np.ndarray, float, floa
         f"re-fitting a and T_b without effects ({len(FREE_FACTORS)} starts, "
         f"{trial.iterations} iterations; one program holds every candidate, compiling first) …"
     )
-    starts = free_alternatives(np.asarray(z, dtype=float), trial.problem)
+    starts = trial.dried(free_alternatives(np.asarray(z, dtype=float), trial.problem))
     cost = np.sum(residual_rows(trial, starts) ** 2, axis=1)  # row 0: z
     z_base = refit(trial, starts[int(np.argmin(cost))], trial.held())
     refit_cost = float(np.sum(residual_rows(trial, z_base[None]) ** 2))
@@ -182,6 +192,7 @@ def fit_effect(trial: Trial, name: str, z_base, say) -> np.ndarray:
     and ``drag_torque``, the other effects held absent: the fitted point."""
     idx = trial.candidates[name]
     starts = np.concatenate([z_base[None], screen_points(z_base, idx, trial.problem)])
+    starts = trial.dried(starts)
     cost = np.sum(residual_rows(trial, starts) ** 2, axis=1)
     best = starts[1 + int(np.argmin(cost[1:]))]
     say(
@@ -235,6 +246,21 @@ def judge_effect(
     )
 
 
+def moves(trial: Trial, z_base, z_fit) -> dict[str, tuple[float, float]]:
+    """How the parameters the effect is fitted with (the film half-lengths, the drag
+    torque) move once it is in: name → (without, with), SI units. A base-model estimate that
+    the effect moves far was biased by its absence."""
+    effect_coords = {i for idx in trial.candidates.values() for i in idx}
+    out = {}
+    for i, spec in enumerate(trial.problem.specs):
+        if i in effect_coords or spec.name.startswith("backlash"):
+            continue
+        if i in trial.nuisances:
+            continue
+        out[spec.name] = (float(spec.value(z_base[i])), float(spec.value(z_fit[i])))
+    return out
+
+
 def try_effect(
     trial: Trial, name: str, z_base, chi2_without: float, level: float, say
 ) -> EffectOutcome:
@@ -242,7 +268,9 @@ def try_effect(
     t0 = time.perf_counter()
     z_fit = fit_effect(trial, name, z_base, say)
     outcome = judge_effect(trial, name, chi2_without, z_fit, level)
-    outcome = dataclasses.replace(outcome, wall_time=time.perf_counter() - t0)
+    outcome = dataclasses.replace(
+        outcome, wall_time=time.perf_counter() - t0, moves=moves(trial, z_base, z_fit)
+    )
     say(
         f"  {name}: χ² {outcome.chi2_without:.1f} → {outcome.chi2_with:.1f} "
         f"(p = {outcome.p_value:.2g}{', supported' if outcome.supported else ''}) in "
@@ -263,6 +291,14 @@ def candidate_problem(problem: Problem, names) -> tuple[Problem, dict[str, list[
     return dataclasses.replace(problem, specs=tuple(specs), effects=effects), candidates
 
 
+def dry_films(problem: Problem, recordings: Sequence[Recording]) -> list[int]:
+    """Coordinates of the film half-lengths that only dry recordings use."""
+    lubrication = [r.operating.lubrication for r in recordings]
+    wet = {f for f, lub in zip(problem.films, lubrication, strict=True) if lub != "dry"}
+    dry = {f for f in problem.films} - wet
+    return [i for i, sp in enumerate(problem.specs) if sp.name in dry]
+
+
 def trial_of(
     recordings: Sequence[Recording],
     baseline: FitResult,
@@ -277,7 +313,8 @@ def trial_of(
     fit_options = baseline.options
     n_final = options.n_final or fit_options.n_covariance_realisations
     y0 = release_states(base, baseline.z, n_final, np.random.default_rng(fit_options.seed + 1))
-    nuisances = [i for i, sp in enumerate(base.specs) if sp.log_sd is not None]
+    dry = dry_films(base, recordings)
+    nuisances = [i for i, sp in enumerate(base.specs) if sp.log_sd is not None] + dry
     return Trial(
         problem,
         baseline.noise,
@@ -287,6 +324,7 @@ def trial_of(
         options.iterations,
         nuisances,
         candidates,
+        dry,
     )
 
 
@@ -362,8 +400,8 @@ def diagnose(
         )
     seen = {f.effect for f in found if f.significant}
     trial = trial_of(recordings, baseline, options, in_program(options, seen))
-    z_absent = np.concatenate(
-        [baseline.z, np.full(len(trial.problem.specs) - len(baseline.z), -Z_END)]
+    z_absent = trial.dried(
+        np.concatenate([baseline.z, np.full(len(trial.problem.specs) - len(baseline.z), -Z_END)])
     )
     z_base, cost_identified, refit_cost = refit_without_effects(trial, z_absent, say)
     chi2_without, _ = final_chi2(trial, z_base)

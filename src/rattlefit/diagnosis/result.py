@@ -33,6 +33,7 @@ class EffectOutcome:
         ``delta_chi2`` > ``noise_threshold``.
     p_after : probability of a χ² at least ``chi2_with`` from noise alone (dof less the
         effect's fields): small when the effect leaves a significant misfit.
+    moves : how the free parameters move once the effect is in: name → (without, with), SI.
     residuals : (R, B) standardised band residuals with the effect.
     """
 
@@ -49,6 +50,7 @@ class EffectOutcome:
     residuals: np.ndarray
     wall_time: float
     p_after: float = 1.0
+    moves: dict[str, tuple[float, float]] = dataclasses.field(default_factory=dict)
 
     def as_dict(self) -> dict:
         d = dataclasses.asdict(self)
@@ -57,6 +59,7 @@ class EffectOutcome:
         }
         d.pop("units")
         d["residuals"] = np.asarray(self.residuals).tolist()
+        d["moves"] = {k: {"without": a, "with": b} for k, (a, b) in self.moves.items()}
         return d
 
 
