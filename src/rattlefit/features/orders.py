@@ -19,9 +19,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 
 import numpy as np
-from scipy import stats
+from scipy import linalg, stats
 
 from ..io.recording import Recording
 
@@ -174,6 +175,25 @@ def cluster_covariance(x: np.ndarray, residuals: np.ndarray, clusters: np.ndarra
     return factor * bread @ meat @ bread
 
 
+def weighted_least_squares(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Coefficients minimising Σ (w (y − x b))², from the normal equations (the columns of a
+    flank fit are sines, cosines and indicators, well conditioned); a column that is zero
+    on every row gets 0, and an ill-conditioned system falls back to least squares (the
+    minimum-norm solution)."""
+    xw = x * w[:, None]
+    gram = xw.T @ xw
+    rhs = xw.T @ (y * w)
+    active = np.diag(gram) > 0
+    coef = np.zeros(x.shape[1])
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", linalg.LinAlgWarning)
+            coef[active] = linalg.solve(gram[np.ix_(active, active)], rhs[active], assume_a="pos")
+    except (linalg.LinAlgError, linalg.LinAlgWarning, ValueError):
+        coef = np.linalg.lstsq(xw, y * w, rcond=None)[0]
+    return coef
+
+
 def usable(events: ContactEvents) -> ContactEvents:
     """``events`` on the flanks met at least :data:`MIN_FLANK_EVENTS` times (a flank met a
     few times cannot carry its own drive-cycle harmonics)."""
@@ -210,8 +230,7 @@ def flank_regression(
             kept |= on & (outer >= np.median(outer[on]))
     scale = np.ones(y.size)
     for _ in range(30):
-        w = 1.0 / scale[kept]
-        coef, *_ = np.linalg.lstsq(x[kept] * w[:, None], y[kept] * w, rcond=None)
+        coef = weighted_least_squares(x[kept], y[kept], 1.0 / scale[kept])
         outward = events.flank * (y - x @ coef)
         for flank in (1, -1):
             on = events.flank == flank
@@ -349,7 +368,8 @@ def inflation(events: ContactEvents, recording: Recording, wheel: str) -> float:
 def runout_evidence(recording: Recording, events: ContactEvents | None = None) -> list[AngleTest]:
     """Once-per-revolution swings of the flanks against each wheel's angle (run-out: a shift
     of both flanks and a change of the play), one test per wheel (``"runout.primary"``,
-    ``"runout.secondary"``), fitted jointly, each χ² divided by its :func:`inflation`."""
+    ``"runout.secondary"``), fitted jointly, each χ² divided by its :func:`inflation` and the
+    amplitude's standard error multiplied by its square root."""
     events = contact_events(recording) if events is None else events
     fit = flank_regression(events, recording, wheel_terms(events))
     r1 = pitch_radius_driving(recording)
@@ -362,6 +382,7 @@ def runout_evidence(recording: Recording, events: ContactEvents | None = None) -
                 test,
                 chi2=test.chi2 / lam,
                 p_value=float(stats.chi2.sf(test.chi2 / lam, test.dof)),
+                amplitude_sd=test.amplitude_sd * math.sqrt(lam),
                 detail=test.detail | {"inflation": lam},
             )
         )
@@ -423,7 +444,8 @@ def tooth_evidence(recording: Recording, events: ContactEvents | None = None) ->
     """A flank position that stands out on one tooth of a wheel (a local defect), one test per
     wheel: each tooth's offset from the mean of all (:func:`tooth_offsets`) and the largest
     squared t over the teeth, divided by its inflation at decoy partitions of the wheel
-    (:func:`decoy_orders`), with a Šidák correction over the teeth."""
+    (:func:`decoy_orders`), with a Šidák correction over the teeth; the offset's standard
+    error is multiplied by the inflation's square root."""
     events = contact_events(recording) if events is None else events
     r1 = pitch_radius_driving(recording)
     out = []
@@ -445,7 +467,7 @@ def tooth_evidence(recording: Recording, events: ContactEvents | None = None) ->
                 dof=1,
                 p_value=float(1 - (1 - p_one) ** teeth),
                 amplitude=r1 * abs(float(b[worst])),
-                amplitude_sd=r1 * float(sd[worst]),
+                amplitude_sd=r1 * float(sd[worst]) * math.sqrt(lam),
                 detail={
                     "tooth": worst,
                     "teeth": teeth,
