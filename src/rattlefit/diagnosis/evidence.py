@@ -45,6 +45,11 @@ RELEVANT_RIPPLE_SHARE = 0.01
 #: of run-out or a tooth's deviation, gear quality classes do not tell gears apart. The
 #: drift test has no floor (its statistics are logarithms and shares).
 RELEVANT_SIZE_M = {"runout": 2e-6, "mesh_order": 1e-6, "tooth": 2e-6}
+#: A pattern is worth naming when its size, less this many standard errors, still reaches
+#: the floor: a one-sided test (about 2.3 % at 2) that the pattern exceeds what is worth
+#: naming, not only that it differs from zero. Thousands of impacts make a sub-micrometre
+#: pattern significant; the floor keeps a pattern of that size from being named.
+RELEVANCE_Z = 2.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,14 +97,19 @@ def kind_of(test: AngleTest) -> str:
 
 
 def relevant(test: AngleTest, recording: Recording) -> bool:
-    """The pattern is large enough to name (:data:`RELEVANT_SIZE_M`,
-    :data:`RELEVANT_RIPPLE_SHARE`)."""
+    """The pattern is large enough to name: its size less :data:`RELEVANCE_Z` standard
+    errors reaches the floor (:data:`RELEVANT_SIZE_M`, :data:`RELEVANT_RIPPLE_SHARE`; a test
+    without a floor is always relevant)."""
     kind = kind_of(test)
     if kind == "drive_order":
         op = recording.operating
-        floor = RELEVANT_RIPPLE_SHARE * 2 * math.pi * op.drive_frequency_hz
-        return test.amplitude >= floor * op.drive_speed_amplitude_rad_s
-    return test.amplitude >= RELEVANT_SIZE_M.get(kind, 0.0)
+        share = RELEVANT_RIPPLE_SHARE * 2 * math.pi * op.drive_frequency_hz
+        floor = share * op.drive_speed_amplitude_rad_s
+    else:
+        floor = RELEVANT_SIZE_M.get(kind, 0.0)
+    if floor <= 0.0:
+        return True
+    return test.amplitude - RELEVANCE_Z * test.amplitude_sd >= floor
 
 
 def findings(recordings: Sequence[Recording], significance: float) -> list[Finding]:
