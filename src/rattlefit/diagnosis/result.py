@@ -15,6 +15,11 @@ MISSED_Z = 3.0
 #: diagnose warns when re-fitting a and T_b without effects lowers the identification's cost
 #: below this share of it (the identification had not found the model's best fit).
 REFIT_WARN_RATIO = 0.5
+#: A supported candidate that removes at least this share of the excess band misfit
+#: (``gap_closed``) explains the band gap even when what it leaves is still significant: the
+#: diagnosis re-fits only a, T_b and the effect's size, with the other parameters held where
+#: the identification put them without the effect, so a right effect can leave a remainder.
+CLOSES_MOST = 0.9
 
 
 @dataclasses.dataclass(frozen=True)
@@ -118,8 +123,9 @@ class Diagnosis:
 
     def explaining(self) -> EffectOutcome | None:
         """The band candidate that explains the band gap: supported, leaving a misfit
-        consistent with noise (``p_after`` ≥ significance), and, for an effect the encoders
-        see (:data:`~rattlefit.diagnosis.evidence.ENCODER_VISIBLE`), found by its model-free
+        consistent with noise (``p_after`` ≥ significance) or removing at least
+        :data:`CLOSES_MOST` of the excess misfit, and, for an effect the encoders see
+        (:data:`~rattlefit.diagnosis.evidence.ENCODER_VISIBLE`), found by its model-free
         test too; the least misfit first; None when there is no band gap or no candidate
         closes it."""
         if not self.band_gap:
@@ -129,7 +135,7 @@ class Diagnosis:
             o
             for o in self.outcomes
             if o.supported
-            and o.p_after >= self.significance
+            and (o.p_after >= self.significance or o.gap_closed >= CLOSES_MOST)
             and (o.name not in ENCODER_VISIBLE or o.name in seen)
         ]
         return min(closing, key=lambda o: o.chi2_with) if closing else None
@@ -277,9 +283,10 @@ def verdict_of(diag: Diagnosis) -> Verdict:
         kind = "effect" if len(names) == 1 else "effects"
         parts = [finding_phrase(f) for _, f in found]
         if closing is not None and closing.name not in dict(found):
+            rest = "" if closing.p_after >= diag.significance else ", a significant rest"
             parts.append(
                 f"{closing.name} (closes {100 * closing.gap_closed:.0f} % of the band misfit: "
-                f"χ² {closing.chi2_without:.1f} → {closing.chi2_with:.1f})"
+                f"χ² {closing.chi2_without:.1f} → {closing.chi2_with:.1f}{rest})"
             )
         sentence = "Found " + " and ".join(parts)
         if diag.band_gap and closing is None:
