@@ -3,7 +3,7 @@
 ``compute()`` runs three fixed pipelines on the bundled ``data/`` files and returns their JSON
 documents with wall times removed:
 
-- ``identify`` with ``FitOptions.quick(seed=0)`` on each of the three files;
+- ``identify`` with ``FitOptions.quick(seed=0)`` on the bundled pair II boundary file;
 - a diagnosis from a quick fit (``FitOptions.quick(seed=0)``) trying two effects;
 - a 20-step emcee chain started from the first identification.
 
@@ -25,11 +25,9 @@ import rattlefit  # noqa: F401  (caps the CPU instruction set before JAX starts)
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 PINS = Path(__file__).resolve().parent / "pins"
-FILES = (
-    "pairII_boundary_65.6_20pct_16Hz.h5",
-    "pairII_oil_jet_65.6_20pct_16Hz.h5",
-    "pairI_boundary_66.0_20pct_16Hz.h5",
-)
+#: one file keeps the pin within CI's time: the oil-jet and pair I files run through the same
+#: code (their fits are checked in test_report and the notebooks)
+FILES = ("pairII_boundary_65.6_20pct_16Hz.h5",)
 DIAGNOSE_FILE = "pairII_boundary_65.6_20pct_16Hz.h5"
 DIAGNOSE_EFFECTS = ("flank_friction", "runout")
 CHAIN_STEPS = 20

@@ -106,6 +106,7 @@ def mild_recording():
     return rec, _truth_of(p)
 
 
+@pytest.mark.slow  # a joint identification of two recordings, too long for CI's budget
 def test_an_oil_jet_companion_identifies_the_boundary_film(mild_recording):
     # The mild boundary recording fitted together with an oil-jet recording of the same pair,
     # operating point and oil (at 25 °C): one a per lubrication, the rest shared. Alone, the
@@ -142,7 +143,7 @@ def test_an_oil_jet_companion_identifies_the_boundary_film(mild_recording):
     assert list(doc["parameters"])[:4] == ["a[boundary]", "a[oil_jet]", "drag_torque", "viscosity"]
 
 
-@pytest.mark.slow  # one fit; in CI the joint fit with an oil-jet companion covers its recording
+@pytest.mark.slow  # one fit
 def test_mild_rattle_tells_the_film_from_dry_flanks(mild_recording):
     rec, truth = mild_recording
     result = identify([rec], FitOptions(seed=FIT_SEED))
