@@ -587,20 +587,24 @@ def step_posterior(args):
 
 @_guarded
 def step_diagnose(args):
-    """diagnose() of a 3-s recording with every effect: wall time (identify included)."""
-    from rattlefit.diagnosis.diagnose import diagnose
+    """diagnose() of a 3-s recording fitting every effect of the catalogue (``every_effect``:
+    the worst case, also the effects its findings rule out): wall time, identify included."""
+    from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
     from rattlefit.io.recording import read_recording
 
     rec = read_recording(RECORDINGS / args["file"])
     t0 = time.perf_counter()
-    diag = diagnose([rec], progress=lambda msg: _say(f"diagnose: {msg}"))
+    options = DiagnoseOptions(every_effect=True)
+    diag = diagnose([rec], options, progress=lambda msg: _say(f"diagnose: {msg}"))
     wall = time.perf_counter() - t0
     return {
         "wall_s": wall,
         "identify_s": diag.baseline.wall_time,
         "chi2": diag.baseline.chi2,
         "dof": diag.baseline.dof,
-        "verdict": None if diag.verdict is None else diag.verdict.name,
+        "gap_chi2": diag.gap_chi2[0],
+        "verdict": diag.verdict.label,
+        "sentence": diag.verdict.sentence,
         "effects": [
             {
                 "name": o.name,
@@ -986,6 +990,7 @@ def report_diagnose(res: dict) -> list[str]:
             f"   wall {diag['wall_s']:.0f} s (identify {diag['identify_s']:.0f} s); χ² without "
             f"effects {diag['chi2']:.1f} on {diag['dof']} dof; verdict: {diag['verdict']}"
         )
+        out.append(f"   {diag.get('sentence', '')}")
         rows = [
             [
                 e["name"],
