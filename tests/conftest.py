@@ -8,12 +8,17 @@ from pathlib import Path
 
 import jax
 import pytest
+from threadpoolctl import threadpool_limits
 
 import rattlefit as rf
 
 # pytest-xdist already runs one worker per core: keep each worker on one JAX device (starting
-# JAX here fixes that, so the CLI's use_cpu_cores() is a no-op under test).
+# JAX here fixes that, so the CLI's use_cpu_cores() is a no-op under test), and its BLAS on one
+# thread (two workers each spinning two BLAS threads on two cores run numpy's matrix products
+# several times slower). numpy is loaded before this file, so the environment variable would
+# come too late: threadpoolctl sets the loaded library.
 jax.devices()
+threadpool_limits(limits=1, user_api="blas")
 # the CLI keeps compiled programs in a cache under the home directory; tests leave it alone
 os.environ.setdefault("RATTLEFIT_CACHE_DIR", "off")
 

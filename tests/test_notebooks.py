@@ -31,11 +31,12 @@ KERNEL = "python3"
 
 def kernel_env() -> dict[str, str]:
     """The kernel's environment: this one, the notebooks' quick switch, no compilation cache,
-    and the rattlefit the tests import first on the path (a checkout's ``src`` or the
-    installed package's folder)."""
+    one BLAS thread, and the rattlefit the tests import first on the path (a checkout's
+    ``src`` or the installed package's folder)."""
     env = dict(os.environ)
     env["RATTLEFIT_NOTEBOOK_QUICK"] = "1"
     env["RATTLEFIT_CACHE_DIR"] = "off"
+    env["OPENBLAS_NUM_THREADS"] = "1"  # one BLAS thread beside the other pytest-xdist worker
     package_root = str(Path(rattlefit.__file__).resolve().parents[1])
     env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH", "")) if p)
     return env
