@@ -231,3 +231,15 @@ def test_ripple_drive_angle_speed_and_acceleration_agree(pair2):
         assert float(drive.acceleration(t)) == pytest.approx(acc, rel=1e-10)
         angle, acc2 = drive.angle_and_acceleration(t)
         assert float(angle) == float(drive.angle(t)) and float(acc2) == float(drive.acceleration(t))
+
+
+def test_an_oval_driving_wheel_is_run_out_and_no_damaged_tooth(tmp_path):
+    # pair I's 11-tooth driving wheel, eccentric (10 µm) and oval (5 µm) in the sets' own
+    # form (not the catalogue's run-out): the model-free tests must name run-out of that
+    # wheel, and the once- and twice-per-revolution swing must not read as one tooth
+    from rattlefit.diagnosis.evidence import findings
+
+    case = _case("injected", "runout_driving_oval")
+    rec = rf.read_recording(ds.build_case(case, tmp_path))
+    named = {f.test.name for f in findings([rec], 0.01) if f.significant}
+    assert named == {"runout.primary"}, named

@@ -141,3 +141,24 @@ def test_a_ripple_of_the_primary_shaft_is_found_with_its_size(boundary_pair2):
     assert test.p_value < 1e-6 and test.detail["order"] == 2
     omega = rec.operating.drive_mean_speed_rad_s
     assert test.amplitude == pytest.approx((2 * omega) ** 2 * ripple, rel=0.05)
+
+
+@pytest.mark.parametrize("teeth", [11, 43])
+def test_the_smooth_part_of_the_tooth_offsets_is_projected_out(teeth):
+    from rattlefit.features.orders import RUNOUT_ORDERS, smooth_part_removed
+
+    angle = 2 * math.pi * (np.arange(teeth) + 0.5) / teeth
+    proj = smooth_part_removed(teeth, np.ones(teeth, bool))
+    # a constant, an eccentric and an oval swing across the teeth leave nothing
+    for order in RUNOUT_ORDERS:
+        swing = 3.0 + np.cos(order * angle + 0.4)
+        assert np.allclose(proj @ swing, 0.0, atol=1e-12)
+    # one tooth of depth d keeps d (1 − 5/T) on that tooth: the mean and two orders take 5 of
+    # the T dimensions, and equally spaced teeth spread them evenly (closed form)
+    notch = np.zeros(teeth)
+    notch[3] = 1.0
+    assert (proj @ notch)[3] == pytest.approx(1 - (1 + 2 * len(RUNOUT_ORDERS)) / teeth)
+    # an untested tooth takes no part
+    tested = np.ones(teeth, bool)
+    tested[5] = False
+    assert np.all(smooth_part_removed(teeth, tested)[5] == 0.0)

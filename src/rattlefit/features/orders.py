@@ -39,8 +39,12 @@ DRIVE_HARMONICS = 3
 OUTLIER_Z = 4.0
 #: A flank met fewer times than this is left out of the flank fit.
 MIN_FLANK_EVENTS = 60
-#: A tooth met fewer times than this (contacts kept by the flank fit) is not tested.
+#: A tooth met fewer times than this (contacts kept by the flank fit), or in fewer contact
+#: episodes than this, is not tested: its offset's cluster-robust standard error needs
+#: several episodes (clusters), and from one it comes out near zero.
 MIN_TOOTH_EVENTS = 3
+#: Orders of a wheel's angle that run-out covers: eccentricity (1) and ovality (2).
+RUNOUT_ORDERS = (1, 2)
 #: Orders of the primary shaft tested for a drive ripple.
 DRIVE_ORDERS = 4
 #: Decoy orders behind each inflation estimate, and their clearance from the orders where
@@ -176,19 +180,22 @@ def cluster_covariance(x: np.ndarray, residuals: np.ndarray, clusters: np.ndarra
 
 
 def weighted_least_squares(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Coefficients minimising Σ (w (y − x b))², from the normal equations (the columns of a
-    flank fit are sines, cosines and indicators, well conditioned); a column that is zero
-    on every row gets 0, and an ill-conditioned system falls back to least squares (the
-    minimum-norm solution)."""
+    """Coefficients minimising Σ (w (y − x b))², from the normal equations with the columns
+    scaled to unit norm (the flanks' weights differ by orders of magnitude); a column that is
+    zero on every row gets 0, and a system still ill-conditioned falls back to least squares
+    (the minimum-norm solution)."""
     xw = x * w[:, None]
     gram = xw.T @ xw
     rhs = xw.T @ (y * w)
-    active = np.diag(gram) > 0
+    norm = np.sqrt(np.diag(gram))
+    active = norm > 0
     coef = np.zeros(x.shape[1])
+    n = norm[active]
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error", linalg.LinAlgWarning)
-            coef[active] = linalg.solve(gram[np.ix_(active, active)], rhs[active], assume_a="pos")
+            scaled = gram[np.ix_(active, active)] / np.outer(n, n)
+            coef[active] = linalg.solve(scaled, rhs[active] / n, assume_a="pos") / n
     except (linalg.LinAlgError, linalg.LinAlgWarning, ValueError):
         coef = np.linalg.lstsq(xw, y * w, rcond=None)[0]
     return coef
@@ -250,15 +257,40 @@ def flank_regression(
 
 def wheel_terms(events: ContactEvents, order: float = 1.0, *, wheels=("primary", "secondary")):
     """Sinusoids of ``order`` × each wheel's angle, one pair per flank, named
-    ``"<wheel>.<upper|lower>.cos|sin"``: a transmission error moves both flanks alike, a
-    change of the centre distance moves them apart (it widens and narrows the play)."""
+    ``"<wheel>.<upper|lower>.cos|sin"`` at order 1 and ``"<wheel>.o<order>.<upper|lower>.…"``
+    otherwise: a transmission error moves both flanks alike, a change of the centre distance
+    moves them apart (it widens and narrows the play)."""
     out = {}
     for wheel in wheels:
         theta = order * getattr(events, f"theta_{wheel}")
+        label = wheel if order == 1 else f"{wheel}.o{order:g}"
         for flank, tag in ((1, "upper"), (-1, "lower")):
             on = (events.flank == flank).astype(float)
-            out[f"{wheel}.{tag}.cos"] = on * np.cos(theta)
-            out[f"{wheel}.{tag}.sin"] = on * np.sin(theta)
+            out[f"{label}.{tag}.cos"] = on * np.cos(theta)
+            out[f"{label}.{tag}.sin"] = on * np.sin(theta)
+    return out
+
+
+def runout_terms(events: ContactEvents, wheels=("primary", "secondary")) -> dict[str, np.ndarray]:
+    """:func:`wheel_terms` of ``wheels`` at each of :data:`RUNOUT_ORDERS`."""
+    out = {}
+    for order in RUNOUT_ORDERS:
+        out |= wheel_terms(events, order, wheels=wheels)
+    return out
+
+
+def smooth_part_removed(teeth: int, tested: np.ndarray) -> np.ndarray:
+    """The projector (T, T) that removes, over the ``tested`` teeth, the mean and the swings
+    at :data:`RUNOUT_ORDERS` across the tooth index (a tooth at the angle of its centre);
+    the rows and columns of the other teeth are zero."""
+    angle = 2 * math.pi * (np.arange(teeth) + 0.5) / teeth
+    smooth = [np.ones(teeth)]
+    for order in RUNOUT_ORDERS:
+        smooth += [np.cos(order * angle), np.sin(order * angle)]
+    h = np.stack(smooth, axis=1)[tested]
+    out = np.zeros((teeth, teeth))
+    idx = np.flatnonzero(tested)
+    out[np.ix_(idx, idx)] = np.eye(idx.size) - h @ np.linalg.pinv(h)
     return out
 
 
@@ -366,12 +398,13 @@ def inflation(events: ContactEvents, recording: Recording, wheel: str) -> float:
 
 
 def runout_evidence(recording: Recording, events: ContactEvents | None = None) -> list[AngleTest]:
-    """Once-per-revolution swings of the flanks against each wheel's angle (run-out: a shift
-    of both flanks and a change of the play), one test per wheel (``"runout.primary"``,
-    ``"runout.secondary"``), fitted jointly, each χ² divided by its :func:`inflation` and the
-    amplitude's standard error multiplied by its square root."""
+    """Swings of the flanks once and twice per revolution of each wheel (run-out: eccentricity
+    and ovality, a shift of both flanks and a change of the play), one test per wheel
+    (``"runout.primary"``, ``"runout.secondary"``) over both orders, fitted jointly, each χ²
+    divided by its :func:`inflation` and the amplitude's standard error multiplied by its
+    square root; the amplitude is the largest pair's."""
     events = contact_events(recording) if events is None else events
-    fit = flank_regression(events, recording, wheel_terms(events))
+    fit = flank_regression(events, recording, runout_terms(events))
     r1 = pitch_radius_driving(recording)
     out = []
     for wheel in ("primary", "secondary"):
@@ -391,10 +424,10 @@ def runout_evidence(recording: Recording, events: ContactEvents | None = None) -
 
 def mesh_order_evidence(recording: Recording, events: ContactEvents | None = None) -> AngleTest:
     """A swing of the flanks once per tooth (a transmission error at the mesh order),
-    fitted together with the once-per-revolution terms."""
+    fitted together with the run-out terms (:func:`runout_terms`)."""
     events = contact_events(recording) if events is None else events
     z1 = recording.gear_pair.teeth_driving
-    terms = wheel_terms(events) | {
+    terms = runout_terms(events) | {
         "mesh.shift.cos": np.cos(z1 * events.theta_primary),
         "mesh.shift.sin": np.sin(z1 * events.theta_primary),
     }
@@ -409,22 +442,38 @@ def tooth_index(theta: np.ndarray, teeth: int) -> np.ndarray:
 
 
 def tooth_offsets(events: ContactEvents, recording: Recording, wheel: str, order: float = 1.0):
-    """Each tooth's flank offset from the mean of all (sum-to-zero contrasts, rad), its
-    standard error, fitted with the once-per-revolution terms; teeth counted on ``order`` ×
-    the wheel's angle (1: the real teeth; otherwise a decoy partition)."""
+    """Each tooth's flank offset beyond the wheel's smooth run-out (rad), and its standard
+    error; teeth counted on ``order`` × the wheel's angle (1: the real teeth; otherwise a
+    decoy partition).
+
+    One offset per tooth is fitted (sum-to-zero contrasts) with the other wheel's run-out
+    terms; the mean and the once- and twice-per-revolution swings across the teeth are then
+    projected out (:func:`smooth_part_removed`), the covariance with them. Fitting the wheel's
+    own run-out sinusoids beside its tooth indicators instead would be nearly collinear (a
+    smooth swing is almost a combination of the indicators). A tooth met fewer than
+    :data:`MIN_TOOTH_EVENTS` times or in fewer contact episodes gets an infinite error."""
     teeth = wheel_teeth(recording, wheel)
     index = tooth_index(order * getattr(events, f"theta_{wheel}"), teeth)
-    terms = wheel_terms(events) | {
+    other = "secondary" if wheel == "primary" else "primary"
+    terms = runout_terms(events, wheels=(other,)) | {
         f"tooth.{k}": (index == k).astype(float) - (index == 0) for k in range(1, teeth)
     }
     fit = flank_regression(events, recording, terms)
     i = fit.block("tooth.")
     b = np.concatenate([[-fit.coef[i].sum()], fit.coef[i]])
     contrast = np.vstack([-np.ones(i.size), np.eye(i.size)])
-    sd = np.sqrt(np.einsum("ij,jk,ik->i", contrast, fit.covariance[np.ix_(i, i)], contrast))
+    cov = contrast @ fit.covariance[np.ix_(i, i)] @ contrast.T
     seen = np.bincount(index[fit.kept], minlength=teeth)
-    sd[seen < MIN_TOOTH_EVENTS] = np.inf  # a tooth met too rarely has no offset to test
-    return b, sd
+    pairs = np.unique(np.stack([index[fit.kept], events.episode[fit.kept]]), axis=1)
+    episodes = np.bincount(pairs[0], minlength=teeth)
+    tested = (seen >= MIN_TOOTH_EVENTS) & (episodes >= MIN_TOOTH_EVENTS)
+    if tested.sum() <= 1 + 2 * len(RUNOUT_ORDERS):
+        return np.zeros(teeth), np.full(teeth, np.inf)  # too few teeth for a local pattern
+    proj = smooth_part_removed(teeth, tested)
+    local = proj @ b
+    sd = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", proj, cov, proj), 0.0))
+    sd[~tested] = np.inf
+    return local, sd
 
 
 def wheel_teeth(recording: Recording, wheel: str) -> int:
