@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 
 from .explain import display_unit
-from .plots import _pyplot, draw_flanks
+from .plots import draw_flanks, pyplot
 from .tables import DISPLAY
 
 #: Seconds of the recording's Δθ* shown as a time history.
@@ -22,7 +22,7 @@ def png(fig) -> bytes:
     """``fig`` as PNG bytes; the figure is closed."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=DPI, bbox_inches="tight")
-    _pyplot().close(fig)
+    pyplot().close(fig)
     return buf.getvalue()
 
 
@@ -33,7 +33,7 @@ def spectrum(spectra: dict, k: int, title: str) -> bytes:
     measured = np.asarray(spectra["measured"][k], dtype=float)
     fitted = np.asarray(spectra["fitted"][k], dtype=float)
     sigma = np.asarray(spectra["sigma"][k], dtype=float)
-    fig, ax = _pyplot().subplots(figsize=(8, 3.8))
+    fig, ax = pyplot().subplots(figsize=(8, 3.8))
     ax.fill_between(
         centres,
         10 ** (fitted - 2 * sigma),
@@ -61,7 +61,7 @@ def time_history(time_s, relative_motion_rad, backlash_rad: float, title: str) -
     t = np.asarray(time_s, dtype=float)
     x = np.asarray(relative_motion_rad, dtype=float)
     n = int(np.searchsorted(t, t[0] + TIME_HISTORY_S))
-    fig, ax = _pyplot().subplots(figsize=(8, 2.8))
+    fig, ax = pyplot().subplots(figsize=(8, 2.8))
     ax.plot(t[:n], x[:n] * 1e3, color="k", lw=0.7)
     mid = 0.5 * (x.max() + x.min()) * 1e3
     for s in (-0.5, 0.5):
@@ -77,7 +77,7 @@ def profiles(curves: dict, threshold: float | None, parameters: dict) -> bytes:
     units), the threshold that sets the 95 % interval as a dashed line, and the interval
     shaded. ``curves`` is the fit JSON's ``fit.profiles``."""
     names = list(curves)
-    fig, axes = _pyplot().subplots(1, len(names), figsize=(4.2 * len(names), 3.2), squeeze=False)
+    fig, axes = pyplot().subplots(1, len(names), figsize=(4.2 * len(names), 3.2), squeeze=False)
     for ax, name in zip(axes[0], names, strict=True):
         pts = np.asarray(curves[name], dtype=float).reshape(-1, 2)
         p = parameters.get(name, {})
@@ -143,7 +143,7 @@ def predictive(idata, k: int, title: str) -> bytes:
     draws = draws.reshape(-1, *draws.shape[-2:])[:, k]
     data = np.asarray(idata.observed_data["log10_psd"], dtype=float)[k]
     centres = np.asarray(idata.observed_data["band"], dtype=float)
-    fig, ax = _pyplot().subplots(figsize=(8, 3.8))
+    fig, ax = pyplot().subplots(figsize=(8, 3.8))
     for i, d in enumerate(draws):
         label = "model mean at a posterior draw" if i == 0 else None
         ax.plot(centres, 10**d, color="C0", lw=0.8, alpha=0.5, label=label)
@@ -166,7 +166,7 @@ def residuals(diagnosis: dict, names: list[str], missed_z: float) -> bytes:
     named = diagnosis.get("verdict_effects") or [diagnosis.get("verdict")]
     best = next((e for e in effects if e["name"] in named), None)
     best = best or (effects[0] if effects else None)
-    fig, axes = _pyplot().subplots(len(base), 1, figsize=(8, 3.0 * len(base)), squeeze=False)
+    fig, axes = pyplot().subplots(len(base), 1, figsize=(8, 3.0 * len(base)), squeeze=False)
     for k, ax in enumerate(axes[:, 0]):
         ax.axhspan(-missed_z, missed_z, color="0.92", lw=0)
         ax.semilogx(centres, base[k], "ko-", ms=3, lw=0.8, label="fitted model")
@@ -185,7 +185,7 @@ def residuals(diagnosis: dict, names: list[str], missed_z: float) -> bytes:
 def flanks(recording, title: str) -> bytes:
     """The flank contacts of ``recording`` against each wheel's angle
     (:func:`~rattlefit.report.plots.draw_flanks`)."""
-    fig, axes = _pyplot().subplots(1, 2, figsize=(11, 3.6))
+    fig, axes = pyplot().subplots(1, 2, figsize=(11, 3.6))
     draw_flanks(axes, recording)
     fig.suptitle(f"{title}: flank contacts against wheel angle", fontsize=10)
     fig.tight_layout()

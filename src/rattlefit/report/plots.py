@@ -26,7 +26,7 @@ from ..util import atomic_write
 from .tables import DISPLAY
 
 
-def _pyplot():
+def pyplot():
     """``matplotlib.pyplot``, imported on first use (0.7 s: a table or JSON output, every
     ``rattlefit identify`` without ``--plot``, does without it). The figures are written to
     files: the Agg backend is chosen unless pyplot is already in use (a notebook keeps its
@@ -45,7 +45,7 @@ def _save(fig, path: Path) -> Path:
         fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight")
 
     atomic_write(path, write)
-    _pyplot().close(fig)
+    pyplot().close(fig)
     return path
 
 
@@ -66,7 +66,7 @@ def plot_fit(result: FitResult, recordings: list[Recording], directory: str | Pa
                 result.options.rtol, [r.operating.lubrication for r in recordings]
             ),
         )
-        fig, (ax1, ax2) = _pyplot().subplots(2, 1, figsize=(9, 8))
+        fig, (ax1, ax2) = pyplot().subplots(2, 1, figsize=(9, 8))
         f = rig.bands.frequencies
         measured = np.asarray(
             welch_psd(rec.relative_motion, rig.sample_rate, rig.bands.segment_length)
@@ -125,7 +125,7 @@ def plot_fit(result: FitResult, recordings: list[Recording], directory: str | Pa
         ax2.legend(fontsize=8, loc="lower right")
         out.append(_save(fig, directory / f"fit_{k}_{Path(rec.path or 'recording').stem}.png"))
     names = result.names
-    fig, ax = _pyplot().subplots(figsize=(1.0 + 0.6 * len(names), 0.8 + 0.6 * len(names)))
+    fig, ax = pyplot().subplots(figsize=(1.0 + 0.6 * len(names), 0.8 + 0.6 * len(names)))
     im = ax.imshow(result.correlation, vmin=-1, vmax=1, cmap="RdBu_r")
     ax.set_xticks(range(len(names)), names, rotation=45, ha="right")
     ax.set_yticks(range(len(names)), names)
@@ -146,7 +146,7 @@ def plot_posterior(
     directory = Path(directory)
     names, p = post.names, len(post.names)
     scale = [DISPLAY.get(u, (1.0, u)) for u in post.units]
-    fig, axes = _pyplot().subplots(p, 1, figsize=(9, 1.6 * p), sharex=True, squeeze=False)
+    fig, axes = pyplot().subplots(p, 1, figsize=(9, 1.6 * p), sharex=True, squeeze=False)
     for i, ax in enumerate(axes[:, 0]):
         ax.plot(post.chain[:, :, i] * scale[i][0], color="k", lw=0.4, alpha=0.35)
         ax.axvspan(0, post.discard, color="0.85", lw=0)
@@ -154,7 +154,7 @@ def plot_posterior(
     axes[-1, 0].set_xlabel("step (shaded: burn-in, discarded)")
     out = [_save(fig, directory / "posterior_trace.png")]
     kept = post.kept * np.array([m for m, _ in scale])
-    fig, axes = _pyplot().subplots(p, p, figsize=(1.9 * p, 1.9 * p), squeeze=False)
+    fig, axes = pyplot().subplots(p, p, figsize=(1.9 * p, 1.9 * p), squeeze=False)
     for i in range(p):
         for j in range(p):
             ax = axes[i, j]
@@ -181,7 +181,7 @@ def plot_posterior(
     if recordings:
         draws, data, centres = post.predictive_features(recordings)
         for k, rec in enumerate(recordings):
-            fig, ax = _pyplot().subplots(figsize=(9, 4.5))
+            fig, ax = pyplot().subplots(figsize=(9, 4.5))
             for i, d in enumerate(draws[:, k]):
                 label = "mean of the realisations at posterior draws" if i == 0 else None
                 ax.loglog(centres, 10**d, color="C0", lw=0.8, alpha=0.5, label=label)
@@ -233,7 +233,7 @@ def plot_diagnosis(
     (:func:`draw_flanks`)."""
     directory = Path(directory)
     n_rec = diag.residuals.shape[0]
-    fig, axes = _pyplot().subplots(n_rec + 1, 1, figsize=(9, 3.2 * (n_rec + 1)), squeeze=False)
+    fig, axes = pyplot().subplots(n_rec + 1, 1, figsize=(9, 3.2 * (n_rec + 1)), squeeze=False)
     centres = diag.band_centers
     for k in range(n_rec):
         ax = axes[k, 0]
@@ -267,7 +267,7 @@ def plot_diagnosis(
     fig.tight_layout()
     out = [_save(fig, directory / "diagnosis.png")]
     for k, rec in enumerate(recordings):
-        fig, axes = _pyplot().subplots(1, 2, figsize=(12, 3.8))
+        fig, axes = pyplot().subplots(1, 2, figsize=(12, 3.8))
         draw_flanks(axes, rec)
         fig.suptitle(f"{Path(rec.path or 'recording').name}: flank contacts against wheel angle")
         fig.tight_layout()
