@@ -58,7 +58,17 @@ def strip(doc):
 
 
 def compute() -> dict:
-    """The pinned documents, keyed by pipeline."""
+    """The pinned documents, keyed by pipeline, with numpy's BLAS on one thread (as in the
+    test workers, tests/conftest.py): a matrix product's last bit depends on the thread
+    count."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return compute_pipelines()
+
+
+def compute_pipelines() -> dict:
+    """The pinned documents, keyed by pipeline (:func:`compute`)."""
     from rattlefit import (
         DiagnoseOptions,
         FitOptions,
