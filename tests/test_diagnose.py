@@ -5,6 +5,7 @@ The recordings are synthetic (rattlefit's simulator with an effect of
 the paper's model without it.
 """
 
+import functools
 import json
 
 import numpy as np
@@ -14,15 +15,15 @@ from click.testing import CliRunner
 import rattlefit as rf
 from rattlefit import FitOptions, synthesize
 from rattlefit.cli import main
-from rattlefit.diagnosis.diagnose import DiagnoseOptions, candidate_problem, diagnose
+from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
 from rattlefit.diagnosis.result import Diagnosis, EffectOutcome, baseline_warnings, gap_closed
 from rattlefit.diagnosis.screening import (
     FREE_FACTORS,
     SCREEN_DECADES,
-    effect_specs,
     free_alternatives,
     screen_points,
 )
+from rattlefit.diagnosis.trial import Trial, candidate_problem, effect_specs, judge_effect
 from rattlefit.errors import RattlefitError
 from rattlefit.inference.problem import build_problem
 from rattlefit.io.recording import OperatingPoint, write_recording
@@ -85,6 +86,11 @@ def test_diagnose_names_withheld_flank_friction_and_sizes_it(tmp_path):
     assert friction["supported"] and friction["p_value"] < FAMILY_P
     coefficient = friction["parameters"]["coefficient"]["value"]
     assert FRICTION_RANGE[0] < coefficient < FRICTION_RANGE[1], coefficient
+    # the named effect's size comes with a 95 % interval from a profile over it, which must
+    # hold the truth and the fitted value, and which the sentence quotes
+    lo, hi = friction["intervals"]["coefficient"]
+    assert lo <= coefficient <= hi and lo <= 0.2 <= hi, (lo, coefficient, hi)
+    assert "95 %:" in doc["sentence"]
     assert friction["gap_closed"] > MIN_GAP_CLOSED
     assert friction["chi2_with"] < friction["chi2_without"] - friction["noise_threshold"]
     # an identification that stopped at its step limit is said to have done so, on screen too
@@ -242,3 +248,116 @@ def test_a_band_candidate_explains_the_gap_when_it_leaves_noise_or_closes_most_o
     assert diag.verdict.kind == ("effect" if named else "unexplained")
     assert diag.verdict.effects == (("flank_friction",) if named else ())
     assert ("significant rest" in diag.verdict.sentence) == (named and p_after < 0.01)
+
+
+def test_an_effect_whose_simulation_fails_is_a_failed_outcome_not_a_verdict(monkeypatch):
+    # A size at the end of its range can make the solver give up (non-finite features): the
+    # effect must be reported as failed, never as "not supported" with p = 1, and the JSON
+    # must stay strict
+    from rattlefit.diagnosis import trial as trial_module
+    from rattlefit.report.tables import format_diagnosis
+    from test_report import _result
+
+    rec, _ = _dry_pair2([])
+    base, _ = build_problem([rec], FitOptions.quick(), np.random.default_rng(BUILD_SEED))
+    problem, candidates = candidate_problem(base, ("pitch_point_friction",))
+    trial = Trial(problem, None, np.asarray(base.data), np.zeros((1, 3, 2)), 28, 0, [], candidates)
+    monkeypatch.setattr(trial_module, "final_chi2", lambda trial, z: (float("nan"), None))
+    z = np.zeros(len(problem.specs))
+    failed = judge_effect(trial, "pitch_point_friction", 59.7, z, 0.01)
+    assert failed.failure and not failed.supported and failed.gap_closed == 0.0
+    doc = failed.as_dict()
+    json.dumps(doc, allow_nan=False)
+    assert doc["chi2_with"] is None and doc["p_value"] is None and doc["residuals"] is None
+    diag = Diagnosis(
+        baseline=_result(59.7, 28),
+        residuals=np.zeros((1, 28)),
+        band_centers=np.zeros(28),
+        band_edges=np.zeros(29),
+        outcomes=[_outcome("mesh_damping", 59.7, 50.0, 1e-3), failed],
+        seed=0,
+        wall_time=0.0,
+        refit_costs=(1.0, 1.0),
+        chi2_without=59.7,
+    )
+    assert diag.verdict.kind == "unexplained"
+    assert "mesh_damping" in diag.verdict.sentence  # the least misfit among those judged
+    text = format_diagnosis(diag)
+    assert "failed: pitch_point_friction (its simulation failed" in text
+    assert "59.7 → failed" in text
+
+
+def _diagnosis_of(outcomes, chi2_without, dof=28):
+    from test_report import _result
+
+    return Diagnosis(
+        baseline=_result(chi2_without, dof),
+        residuals=np.zeros((1, dof)),
+        band_centers=np.zeros(dof),
+        band_edges=np.zeros(dof + 1),
+        outcomes=outcomes,
+        seed=0,
+        wall_time=0.0,
+        refit_costs=(1.0, 1.0),
+        chi2_without=chi2_without,
+    )
+
+
+@pytest.mark.parametrize("beyond", [True, False])
+def test_two_effects_are_named_together_only_when_they_close_clearly_more_than_either(beyond):
+    # Neither single candidate closes the gap (each leaves a significant rest and less than
+    # CLOSES_MOST of it); the pair leaves noise. It is named only when the second effect
+    # removes a significant part of what the first leaves (beyond_single).
+    import dataclasses
+
+    first = _outcome("flank_friction", 300.0, 120.0, 1e-12)
+    second = _outcome("speed_dependent_drag", 300.0, 200.0, 1e-20)
+    pair = dataclasses.replace(
+        _outcome("flank_friction+speed_dependent_drag", 300.0, 27.0, 0.4),
+        p_beyond=1e-9 if beyond else 0.5,
+        beyond_single=beyond,
+    )
+    diag = _diagnosis_of([first, second, pair], 300.0)
+    assert diag.verdict.kind == ("effects" if beyond else "unexplained")
+    if beyond:
+        assert diag.explaining() is pair
+        assert diag.verdict.effects == ("flank_friction", "speed_dependent_drag")
+        assert "flank_friction and speed_dependent_drag together" in diag.verdict.sentence
+    assert json.loads(json.dumps(pair.as_dict(), allow_nan=False))["beyond_single"] == beyond
+
+
+def test_the_size_interval_is_where_the_profile_rises_by_the_threshold(monkeypatch):
+    # A χ² that rises quadratically in log10(size) about the fitted size, k per decade²: the
+    # interval's ends lie at ±√(threshold/k) decades (the crossing is interpolated in the
+    # square root of the rise, exact for a quadratic), with the threshold of
+    # inference.profile (χ²₁'s 95 % quantile plus the Monte Carlo noise of a difference of
+    # two χ²s from n_final realisations); where the misfit left exceeds the dof, the rise is
+    # scaled down by it and the interval widens accordingly.
+    from rattlefit.diagnosis import size as size_module
+    from rattlefit.inference.profile import profile_threshold
+
+    rec, _ = _dry_pair2([])
+    base, _ = build_problem([rec], FitOptions.quick(), np.random.default_rng(BUILD_SEED))
+    problem, candidates = candidate_problem(base, ("flank_friction",))
+    i = candidates["flank_friction"][0]
+    spec = problem.specs[i]
+    n_final, dof, k = 24, 28, 100.0
+    trial = Trial(
+        problem, None, np.asarray(base.data), np.zeros((1, n_final, 2)), dof, 2, [], candidates
+    )
+    z_fit = np.zeros(len(problem.specs))
+    z_fit[i] = spec.z_of(0.05)
+    monkeypatch.setattr(size_module, "polish_profile", lambda rows, zs, *a, **kw: zs)
+
+    def rising(chi2_min, trial, zs):
+        t = [np.log10(float(spec.value(z[i])) / 0.05) for z in zs]
+        return chi2_min + k * np.square(t)
+
+    for chi2_min in (20.0, 2.0 * 27):  # within the dof, then twice what is left
+        monkeypatch.setattr(size_module, "chi2s", functools.partial(rising, chi2_min))
+        ((lo, hi),) = size_module.size_intervals(trial, "flank_friction", z_fit, chi2_min).values()
+        scale = max(1.0, chi2_min / 27)
+        noise = np.sqrt(8.0 * max(chi2_min, 27) / (n_final + 1)) / scale
+        half = np.sqrt(profile_threshold(noise) * scale / k)  # decades
+        assert np.log10(hi / 0.05) == pytest.approx(half, rel=1e-9)
+        assert np.log10(0.05 / lo) == pytest.approx(half, rel=1e-9)

@@ -15,14 +15,17 @@ starts from an identification (:func:`~rattlefit.inference.identify.identify`) a
    (:func:`~rattlefit.diagnosis.result.baseline_warnings`);
 3. **tries each effect** of :mod:`rattlefit.physics.effects` on its own: added to the model
    at its absent end, its fields screened over their ranges
-   (:func:`~rattlefit.diagnosis.screening.screen_points`), then fitted together with ``a``
+   (:func:`~rattlefit.diagnosis.screening.screen`), then fitted together with ``a``
    and ``drag_torque`` (damped Gauss–Newton on finite differences; the nuisances stay put);
 4. **measures how far the gap shrinks**, out of sample: the χ² of the data rows (band
    correlations included, the identification's noise model fixed) without the effect and
    with it, both from the same :attr:`DiagnoseOptions.n_final` fresh realisations (common
    random numbers) that no fit saw, so that points which fit the fit's own few
    realisations by luck do not count. ``gap_closed`` is the share of the excess misfit
-   (χ² − dof) that the effect removes.
+   (χ² − dof) that the effect removes;
+5. **pairs** the best supported candidate with the next ones when it leaves a significant
+   misfit (:mod:`rattlefit.diagnosis.pairs`), and **sizes** the named candidate with a
+   profile interval (:mod:`rattlefit.diagnosis.size`).
 
 The verdict (:class:`~rattlefit.diagnosis.result.Verdict`) is ``"none"`` when the model
 without extra effects fits the band spectrum (its χ² after the re-fit, on the fresh
@@ -42,8 +45,6 @@ gap compare like with like.
 from __future__ import annotations
 
 import dataclasses
-import functools
-import math
 import time
 from collections.abc import Callable, Sequence
 
@@ -51,24 +52,31 @@ import numpy as np
 from scipy import stats
 
 from ..errors import RattlefitError
-from ..inference.forward import evaluate
 from ..inference.identify import identify
-from ..inference.noise import NoiseModel
 from ..inference.options import FitOptions
 from ..inference.parameters import Z_END
-from ..inference.problem import Problem, release_states
-from ..inference.profile import polish_profile
+from ..inference.problem import release_states
 from ..inference.result import FitResult
 from ..io.recording import Recording
-from ..physics.effects import EFFECTS, absent, effect_class
+from ..physics.effects import EFFECTS, effect_class
 from ..reproducibility import platform_info
 from ..util import stamped
 from .evidence import ENCODER_VISIBLE, findings
-from .result import Diagnosis, EffectOutcome, baseline_warnings, finding_phrase, gap_closed
-from .screening import FREE_FACTORS, effect_specs, free_alternatives, screen_points
-
-#: One-sided 95 % quantile of the standard normal (the χ² drop's Monte Carlo allowance).
-Z95_ONE_SIDED = 1.645
+from .pairs import pair_candidates, pair_name, try_pair
+from .result import Diagnosis, EffectOutcome, baseline_warnings, finding_phrase
+from .screening import FREE_FACTORS, free_alternatives, screen
+from .size import size_intervals
+from .trial import (
+    Trial,
+    candidate_problem,
+    costs,
+    dry_films,
+    final_chi2,
+    judge_effect,
+    moves,
+    refit,
+    residual_rows,
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -103,75 +111,6 @@ class DiagnoseOptions:
             raise RattlefitError("DiagnoseOptions.iterations must be ≥ 0")
 
 
-@dataclasses.dataclass(frozen=True)
-class Trial:
-    """What every effect's trial shares.
-
-    problem : the identification's problem (its realisations and band spread) with every
-        candidate effect added at its absent end: one compiled program, so that the model
-        without effects and each effect's fit are the same realisations.
-    noise, data, dof : the identification's noise model, measured features (R, B) and
-        degrees of freedom.
-    y0 : fresh release states of the final comparison.
-    iterations : Gauss–Newton iterations per fit.
-    nuisances : coordinates never re-fitted: the parameters with a prior, and the film
-        half-length of dry recordings, held at its dry end (dry flanks have no oil film, and
-        a film fitted to them would absorb dissipation that is in the contact).
-    candidates : each effect's coordinates in ``problem``.
-    dry : the film coordinates of dry recordings (part of ``nuisances``).
-    """
-
-    problem: Problem
-    noise: NoiseModel
-    data: np.ndarray
-    y0: np.ndarray
-    dof: int
-    iterations: int
-    nuisances: list[int]
-    candidates: dict[str, list[int]]
-    dry: list[int] = dataclasses.field(default_factory=list)
-
-    def dried(self, zs: np.ndarray) -> np.ndarray:
-        """``zs`` (…, P) with the dry recordings' film half-lengths at their dry end."""
-        zs = np.array(zs, dtype=float, copy=True)
-        zs[..., self.dry] = -Z_END
-        return zs
-
-    def held(self, name: str | None = None) -> list[int]:
-        """Coordinates held fixed in a fit of effect ``name`` (None: of no effect): the
-        nuisances and every other effect's fields."""
-        others = [i for n, idx in self.candidates.items() if n != name for i in idx]
-        return sorted(self.nuisances + others)
-
-
-def whitened_rows(trial: Trial, mean: np.ndarray) -> np.ndarray:
-    """The identification's whitened data rows for mean features ``mean`` (R, B)."""
-    sigma = np.asarray(trial.problem.sigma)
-    return trial.noise.whiten @ ((trial.data - mean) / sigma).reshape(-1)
-
-
-def residual_rows(trial: Trial, zs) -> np.ndarray:
-    """Whitened data rows and prior rows at each point of ``zs``: (K, n)."""
-    problem = trial.problem
-    mean = np.asarray(problem.mean_of(evaluate(problem, zs)))
-    return np.stack(
-        [
-            np.concatenate([whitened_rows(trial, mean[k]), problem.prior_rows(np.asarray(z))])
-            for k, z in enumerate(zs)
-        ]
-    )
-
-
-def refit(trial: Trial, z, held: list[int]) -> np.ndarray:
-    """``z`` after ``trial.iterations`` of damped Gauss–Newton on the coordinates not in
-    ``held``."""
-    if not trial.iterations:
-        return z
-    steps = np.minimum(trial.problem.fd_steps(np.asarray(z)), 1.0)[None]
-    rows = functools.partial(residual_rows, trial)
-    return polish_profile(rows, z[None], [held], steps, iterations=trial.iterations)[0]
-
-
 def refit_without_effects(trial: Trial, z, say) -> tuple[np.ndarray, float, float]:
     """The model without effects re-fitted over ``a`` and ``drag_torque`` from the
     screening's alternatives of them at ``z`` (every effect absent): the re-fitted point,
@@ -181,122 +120,46 @@ def refit_without_effects(trial: Trial, z, say) -> tuple[np.ndarray, float, floa
         f"{trial.iterations} iterations; one program holds every candidate, compiling first) …"
     )
     starts = trial.dried(free_alternatives(np.asarray(z, dtype=float), trial.problem))
-    cost = np.sum(residual_rows(trial, starts) ** 2, axis=1)  # row 0: z
+    cost = costs(trial, starts)  # row 0: z
     z_base = refit(trial, starts[int(np.argmin(cost))], trial.held())
     refit_cost = float(np.sum(residual_rows(trial, z_base[None]) ** 2))
     return z_base, float(cost[0]), refit_cost
 
 
 def fit_effect(trial: Trial, name: str, z_base, say) -> np.ndarray:
-    """Effect ``name`` screened from ``z_base`` (every effect absent) and fitted with ``a``
-    and ``drag_torque``, the other effects held absent: the fitted point."""
-    idx = trial.candidates[name]
-    starts = np.concatenate([z_base[None], screen_points(z_base, idx, trial.problem)])
-    starts = trial.dried(starts)
-    cost = np.sum(residual_rows(trial, starts) ** 2, axis=1)
-    best = starts[1 + int(np.argmin(cost[1:]))]
+    """Effect ``name`` screened from ``z_base`` (:func:`screen`) and fitted with ``a`` and
+    ``drag_torque``, the other effects held absent: the fitted point."""
+    best, cost_without, cost_best = screen(trial, name, z_base)
     say(
-        f"  {name}: cost {cost[0]:.1f} without, {cost.min():.1f} at the best start; "
+        f"  {name}: cost {cost_without:.1f} without, {cost_best:.1f} at the best start; "
         f"fitting it with a and T_b ({trial.iterations} iterations) …"
     )
     return refit(trial, best, trial.held(name))
 
 
-def final_chi2(trial: Trial, z) -> tuple[float, np.ndarray]:
-    """χ² of the data rows at ``z`` on the fresh release states, and the mean features."""
-    mean = np.asarray(trial.problem.mean_of(evaluate(trial.problem, z[None], trial.y0)))[0]
-    return float(np.sum(whitened_rows(trial, mean) ** 2)), mean
-
-
-def judge_effect(
-    trial: Trial, name: str, chi2_without: float, z_fit, level: float
-) -> EffectOutcome:
-    """The effect's outcome: χ² with it on the fresh realisations against ``chi2_without``
-    (the same realisations without any effect), the F-test at ``level`` and the Monte Carlo
-    noise of the drop."""
-    idx = trial.candidates[name]
-    d = len(idx)
-    chi2_with, mean = final_chi2(trial, z_fit)
-    delta = chi2_without - chi2_with
-    # Monte Carlo noise of each χ² from n realisations (cf. the profile threshold)
-    n, dof = trial.y0.shape[1], trial.dof
-    var = 4.0 * max(chi2_without, dof) / (n + 1) + 4.0 * max(chi2_with, dof) / (n + 1)
-    threshold = Z95_ONE_SIDED * math.sqrt(var)
-    dof_with = max(dof - d, 1)
-    f_stat = (delta / d) / max(chi2_with / dof_with, 1e-12)
-    p_value = float(stats.f.sf(f_stat, d, dof_with)) if delta > 0 else 1.0
-    specs = [trial.problem.specs[i] for i in idx]
-    values = {
-        s.name.split(".", 1)[1]: float(s.value(z_fit[i])) for i, s in zip(idx, specs, strict=True)
-    }
-    return EffectOutcome(
-        name=name,
-        values=values,
-        units={k: u for k, (u, _, _) in effect_class(name).ranges.items()},
-        chi2_without=chi2_without,
-        chi2_with=chi2_with,
-        delta_chi2=delta,
-        gap_closed=gap_closed(chi2_without, chi2_with, dof),
-        p_value=p_value,
-        noise_threshold=threshold,
-        supported=bool(p_value < level and delta > threshold),
-        residuals=(trial.data - mean) / np.asarray(trial.problem.sigma),
-        wall_time=0.0,
-        p_after=float(stats.chi2.sf(chi2_with, dof_with)),
-    )
-
-
-def moves(trial: Trial, z_base, z_fit) -> dict[str, tuple[float, float]]:
-    """How the parameters the effect is fitted with (the film half-lengths, the drag
-    torque) move once it is in: name → (without, with), SI units. A base-model estimate that
-    the effect moves far was biased by its absence."""
-    effect_coords = {i for idx in trial.candidates.values() for i in idx}
-    out = {}
-    for i, spec in enumerate(trial.problem.specs):
-        if i in effect_coords or spec.name.startswith("backlash"):
-            continue
-        if i in trial.nuisances:
-            continue
-        out[spec.name] = (float(spec.value(z_base[i])), float(spec.value(z_fit[i])))
-    return out
-
-
 def try_effect(
     trial: Trial, name: str, z_base, chi2_without: float, level: float, say
-) -> EffectOutcome:
-    """Fit effect ``name`` (:func:`fit_effect`) and judge it (:func:`judge_effect`)."""
+) -> tuple[EffectOutcome, np.ndarray]:
+    """Fit effect ``name`` (:func:`fit_effect`) and judge it (:func:`judge_effect`): the
+    outcome and the fitted point."""
     t0 = time.perf_counter()
     z_fit = fit_effect(trial, name, z_base, say)
     outcome = judge_effect(trial, name, chi2_without, z_fit, level)
     outcome = dataclasses.replace(
         outcome, wall_time=time.perf_counter() - t0, moves=moves(trial, z_base, z_fit)
     )
-    say(
-        f"  {name}: χ² {outcome.chi2_without:.1f} → {outcome.chi2_with:.1f} "
-        f"(p = {outcome.p_value:.2g}{', supported' if outcome.supported else ''}) in "
-        f"{outcome.wall_time:.0f} s"
+    say(f"  {outcome_phrase(outcome)}")
+    return outcome, z_fit
+
+
+def outcome_phrase(o: EffectOutcome) -> str:
+    """One judged outcome in a progress line."""
+    if o.failure:
+        return f"{o.name}: failed ({o.failure}) in {o.wall_time:.0f} s"
+    return (
+        f"{o.name}: χ² {o.chi2_without:.1f} → {o.chi2_with:.1f} "
+        f"(p = {o.p_value:.2g}{', supported' if o.supported else ''}) in {o.wall_time:.0f} s"
     )
-    return outcome
-
-
-def candidate_problem(problem: Problem, names) -> tuple[Problem, dict[str, list[int]]]:
-    """``problem`` with every effect in ``names`` added at its absent end, and each effect's
-    coordinates."""
-    specs, candidates = list(problem.specs), {}
-    for name in names:
-        extra = effect_specs(name)
-        candidates[name] = list(range(len(specs), len(specs) + len(extra)))
-        specs += extra
-    effects = tuple(absent(name) for name in names)
-    return dataclasses.replace(problem, specs=tuple(specs), effects=effects), candidates
-
-
-def dry_films(problem: Problem, recordings: Sequence[Recording]) -> list[int]:
-    """Coordinates of the film half-lengths that only dry recordings use."""
-    lubrication = [r.operating.lubrication for r in recordings]
-    wet = {f for f, lub in zip(problem.films, lubrication, strict=True) if lub != "dry"}
-    dry = {f for f in problem.films} - wet
-    return [i for i, sp in enumerate(problem.specs) if sp.name in dry]
 
 
 def trial_of(
@@ -356,15 +219,88 @@ def effects_to_try(
     return tried, skipped
 
 
-def try_effects(trial: Trial, names, z_base, chi2_without, significance, say):
-    """Each effect of ``names`` fitted and judged (:func:`try_effect`) at ``significance``
-    over their number (Bonferroni), the least misfit left first."""
-    level = significance / max(len(names), 1)
-    outcomes = []
+def try_effects(trial: Trial, names, z_base, chi2_without, level, say):
+    """Each effect of ``names`` fitted and judged (:func:`try_effect`) at ``level``: the
+    outcomes, the least misfit left first, and each effect's fitted point."""
+    outcomes, fitted = [], {}
     for n, name in enumerate(names):
         say(f"effect {n + 1}/{len(names)}: {name} — screening …")
-        outcomes.append(try_effect(trial, name, z_base, chi2_without, level, say))
-    return sorted(outcomes, key=lambda o: o.chi2_with)
+        outcome, fitted[name] = try_effect(trial, name, z_base, chi2_without, level, say)
+        outcomes.append(outcome)
+    return sorted(outcomes, key=lambda o: (bool(o.failure), o.chi2_with)), fitted
+
+
+def try_pairs(trial: Trial, diag: Diagnosis, fitted: dict, level: float, say) -> list:
+    """When the band gap is significant and the best supported candidate leaves a
+    significant misfit, that candidate fitted together with each of the next supported
+    ones (:mod:`rattlefit.diagnosis.pairs`): their outcomes (each fitted point added to
+    ``fitted``)."""
+    pairs = pair_candidates(diag.outcomes)
+    if not diag.band_gap or not pairs or pairs[0][0].p_after >= diag.significance:
+        return []
+    out = []
+    for first, second in pairs:
+        say(f"fitting {first.name} and {second.name} together …")
+        t0 = time.perf_counter()
+        outcome, fitted[pair_name(first, second)] = try_pair(
+            trial, first, second, fitted, diag.chi2_without, level
+        )
+        outcome = dataclasses.replace(outcome, wall_time=time.perf_counter() - t0)
+        say(f"  {outcome_phrase(outcome)}")
+        out.append(outcome)
+    return out
+
+
+def with_interval(trial: Trial, diag: Diagnosis, fitted: dict, say) -> Diagnosis:
+    """``diag`` with the size interval (:func:`~rattlefit.diagnosis.size.size_intervals`)
+    of the band candidate its verdict names."""
+    named = diag.explaining()
+    if named is None:
+        return diag
+    say(f"profiling the size of {named.name} …")
+    intervals = size_intervals(trial, named.name, fitted[named.name], named.chi2_with)
+    outcomes = [
+        dataclasses.replace(o, intervals=intervals) if o is named else o for o in diag.outcomes
+    ]
+    return dataclasses.replace(diag, outcomes=outcomes)
+
+
+def identified(recordings, options: DiagnoseOptions, baseline: FitResult | None, progress, say):
+    """``baseline``, checked to be of ``recordings``, or an identification of them."""
+    if baseline is None:
+        say("identifying the model without extra effects …")
+        return identify(recordings, options.fit, progress=progress)
+    if baseline.recordings != [str(r.path) for r in recordings]:
+        raise RattlefitError(
+            f"diagnose: the baseline fit is of {baseline.recordings}, not of "
+            f"{[str(r.path) for r in recordings]}"
+        )
+    return baseline
+
+
+def model_free(recordings, options: DiagnoseOptions, say):
+    """The model-free tests of ``recordings`` (:func:`~rattlefit.diagnosis.evidence.findings`)
+    and the effects the significant ones point to."""
+    found = findings(recordings, options.significance)
+    for f in found:
+        if f.significant:
+            say(f"model-free evidence: {finding_phrase(f)}")
+    return found, {f.effect for f in found if f.significant}
+
+
+def base_model(trial: Trial, baseline: FitResult, say):
+    """The model without effects re-fitted (:func:`refit_without_effects`) from
+    ``baseline``: its point, its χ² on the fresh realisations, the identification's cost and
+    the re-fit's, and the warnings about the identification."""
+    z_absent = trial.dried(
+        np.concatenate([baseline.z, np.full(len(trial.problem.specs) - len(baseline.z), -Z_END)])
+    )
+    z_base, cost_identified, refit_cost = refit_without_effects(trial, z_absent, say)
+    chi2_without, _ = final_chi2(trial, z_base)
+    warnings = baseline_warnings(baseline.success, cost_identified, refit_cost)
+    for w in warnings:
+        say("  warning: " + w)
+    return z_base, chi2_without, (cost_identified, refit_cost), tuple(warnings)
 
 
 def diagnose(
@@ -386,49 +322,35 @@ def diagnose(
     t_start = time.perf_counter()
     say = stamped(progress, t_start)  # progress, stamped with the time since the start
     platform = platform_info()
-    found = findings(recordings, options.significance)
-    for f in found:
-        if f.significant:
-            say(f"model-free evidence: {finding_phrase(f)}")
-    if baseline is None:
-        say("identifying the model without extra effects …")
-        baseline = identify(recordings, options.fit, progress=progress)
-    elif baseline.recordings != [str(r.path) for r in recordings]:
-        raise RattlefitError(
-            f"diagnose: the baseline fit is of {baseline.recordings}, not of "
-            f"{[str(r.path) for r in recordings]}"
-        )
-    seen = {f.effect for f in found if f.significant}
+    found, seen = model_free(recordings, options, say)
+    baseline = identified(recordings, options, baseline, progress, say)
     trial = trial_of(recordings, baseline, options, in_program(options, seen))
-    z_absent = trial.dried(
-        np.concatenate([baseline.z, np.full(len(trial.problem.specs) - len(baseline.z), -Z_END)])
-    )
-    z_base, cost_identified, refit_cost = refit_without_effects(trial, z_absent, say)
-    chi2_without, _ = final_chi2(trial, z_base)
-    warnings = baseline_warnings(baseline.success, cost_identified, refit_cost)
-    for w in warnings:
-        say("  warning: " + w)
+    z_base, chi2_without, refit_costs, warnings = base_model(trial, baseline, say)
     gap = stats.chi2.sf(chi2_without, trial.dof) < options.significance
     tried, skipped = effects_to_try(options, seen, gap)
     for name, why in skipped.items():
         say(f"not fitting {name}: {why}")
-    outcomes = try_effects(trial, tried, z_base, chi2_without, options.significance, say)
+    level = options.significance / max(len(tried), 1)  # Bonferroni
+    outcomes, fitted = try_effects(trial, tried, z_base, chi2_without, level, say)
     bands = trial.problem.bands
-    wall = time.perf_counter() - t_start
-    say(f"done in {wall:.0f} s")
-    return Diagnosis(
+    diag = Diagnosis(
         baseline=baseline,
         residuals=(trial.data - np.stack(baseline.fitted_features)) / np.stack(baseline.sigma),
         band_centers=bands.centers,
         band_edges=bands.edges,
         outcomes=outcomes,
         seed=baseline.options.seed,
-        wall_time=wall,
-        refit_costs=(cost_identified, refit_cost),
-        warnings=tuple(warnings),
+        wall_time=0.0,
+        refit_costs=refit_costs,
+        warnings=warnings,
         findings=tuple(found),
         significance=options.significance,
         chi2_without=chi2_without,
         skipped=skipped,
         platform=platform,
     )
+    pairs = try_pairs(trial, diag, fitted, level, say)
+    diag = with_interval(trial, dataclasses.replace(diag, outcomes=outcomes + pairs), fitted, say)
+    wall = time.perf_counter() - t_start
+    say(f"done in {wall:.0f} s")
+    return dataclasses.replace(diag, wall_time=wall)

@@ -40,6 +40,19 @@ class EffectOutcome:
         effect's fields): small when the effect leaves a significant misfit.
     moves : how the free parameters move once the effect is in: name → (without, with), SI.
     residuals : (R, B) standardised band residuals with the effect.
+    failure : why the effect could not be judged (its simulation failed at the fitted
+        point, so ``chi2_with`` is not finite); empty when it was judged. A failed effect is
+        never supported.
+    intervals : 95 % intervals (SI) of the effect's size (its first field), from a profile
+        of the χ² over it (:mod:`rattlefit.diagnosis.size`): key → (lower, upper); computed
+        for the effects a verdict names, empty otherwise.
+
+    Two effects fitted together have the name ``"<effect>+<effect>"``, their values keyed
+    ``"<effect>.<field>"``, and:
+
+    p_beyond : F-test p of their χ² against their better member's alone.
+    beyond_single : ``p_beyond`` below the level and the drop above the Monte Carlo noise:
+        the second effect removes a significant part of what the first leaves.
     """
 
     name: str
@@ -56,6 +69,30 @@ class EffectOutcome:
     wall_time: float
     p_after: float = 1.0
     moves: dict[str, tuple[float, float]] = dataclasses.field(default_factory=dict)
+    failure: str = ""
+    intervals: dict[str, tuple[float, float]] = dataclasses.field(default_factory=dict)
+    p_beyond: float = float("nan")
+    beyond_single: bool = False
+
+    @property
+    def effects(self) -> tuple[str, ...]:
+        """The effects in this outcome: one, or two fitted together."""
+        return tuple(self.name.split("+"))
+
+    def size_phrase(self) -> str:
+        """The fitted sizes that have an interval, e.g. ``coefficient 0.16 (95 %: 0.05–0.4)``
+        (lengths in µm)."""
+        parts = []
+        for key, value in self.values.items():
+            if key not in self.intervals:
+                continue
+            lo, hi = self.intervals[key]
+            unit, scale = ("µm", 1e6) if self.units[key] == "m" else (self.units[key], 1.0)
+            unit = "" if unit == "1" else f" {unit}"
+            parts.append(
+                f"{key} {scale * value:.2g}{unit} (95 %: {scale * lo:.2g}–{scale * hi:.2g})"
+            )
+        return "; ".join(parts)
 
     def as_dict(self) -> dict:
         d = dataclasses.asdict(self)
@@ -63,7 +100,10 @@ class EffectOutcome:
             k: {"value": v, "unit": self.units[k]} for k, v in d.pop("values").items()
         }
         d.pop("units")
-        d["residuals"] = np.asarray(self.residuals).tolist()
+        d["residuals"] = None if self.failure else np.asarray(self.residuals).tolist()
+        d["intervals"] = {k: list(v) for k, v in self.intervals.items()}
+        for k in ("chi2_with", "delta_chi2", "p_value", "noise_threshold", "p_after", "p_beyond"):
+            d[k] = d[k] if np.isfinite(d[k]) else None  # JSON has no NaN; null: not judged
         d["moves"] = {k: {"without": a, "with": b} for k, (a, b) in self.moves.items()}
         return d
 
@@ -126,8 +166,9 @@ class Diagnosis:
         consistent with noise (``p_after`` ≥ significance) or removing at least
         :data:`CLOSES_MOST` of the excess misfit, and, for an effect the encoders see
         (:data:`~rattlefit.diagnosis.evidence.ENCODER_VISIBLE`), found by its model-free
-        test too; the least misfit first; None when there is no band gap or no candidate
-        closes it."""
+        test too; two effects together only when they close clearly more than the better
+        alone (``beyond_single``); the least misfit first; None when there is no band gap
+        or no candidate closes it."""
         if not self.band_gap:
             return None
         seen = {f.effect for f in self.findings if f.significant}
@@ -136,7 +177,8 @@ class Diagnosis:
             for o in self.outcomes
             if o.supported
             and (o.p_after >= self.significance or o.gap_closed >= CLOSES_MOST)
-            and (o.name not in ENCODER_VISIBLE or o.name in seen)
+            and all(n not in ENCODER_VISIBLE or n in seen for n in o.effects)
+            and (len(o.effects) == 1 or o.beyond_single)
         ]
         return min(closing, key=lambda o: o.chi2_with) if closing else None
 
@@ -260,8 +302,8 @@ def verdict_of(diag: Diagnosis) -> Verdict:
     found = found_effects(diag.findings)
     closing = diag.explaining()
     names = [name for name, _ in found]
-    if closing is not None and closing.name not in names:
-        names.append(closing.name)
+    if closing is not None:
+        names += [n for n in closing.effects if n not in names]
     fit_words = f"χ² {chi2:.1f} on {dof} dof, p = {p:.2g}"
     if not names and not diag.band_gap:
         kind = "none"
@@ -271,7 +313,8 @@ def verdict_of(diag: Diagnosis) -> Verdict:
         )
     elif not names:
         kind = "unexplained"
-        best = min(diag.outcomes, key=lambda o: o.chi2_with, default=None)
+        judged = [o for o in diag.outcomes if not o.failure]
+        best = min(judged, key=lambda o: o.chi2_with, default=None)
         tried = (
             ""
             if best is None
@@ -282,10 +325,12 @@ def verdict_of(diag: Diagnosis) -> Verdict:
     else:
         kind = "effect" if len(names) == 1 else "effects"
         parts = [finding_phrase(f) for _, f in found]
-        if closing is not None and closing.name not in dict(found):
+        if closing is not None and not set(closing.effects) <= set(dict(found)):
             rest = "" if closing.p_after >= diag.significance else ", a significant rest"
+            size = f"{closing.size_phrase()}; " if closing.intervals else ""
+            who = " and ".join(closing.effects) + (" together" if len(closing.effects) > 1 else "")
             parts.append(
-                f"{closing.name} (closes {100 * closing.gap_closed:.0f} % of the band misfit: "
+                f"{who} ({size}closes {100 * closing.gap_closed:.0f} % of the band misfit: "
                 f"χ² {closing.chi2_without:.1f} → {closing.chi2_with:.1f}{rest})"
             )
         sentence = "Found " + " and ".join(parts)

@@ -12,25 +12,19 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..inference.parameters import Z_END, ParameterSpec
+from ..inference.parameters import Z_END
 from ..inference.problem import Problem
-from ..physics.effects import effect_class
+from .trial import Trial, costs
 
 #: Where each effect field is screened before the fit: decades below the top of its range
 #: (each range's top is a generous size for a production gearbox, so the sizes worth finding
 #: lie within a few decades of it; the lower end means absent). Quarter decades (a factor
 #: 1.78) over the top two: an effect's basin can be narrower than half a decade.
 SCREEN_DECADES = (0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 1.75, 2.0, 3.0)
-
-
-def effect_specs(name: str) -> tuple[ParameterSpec, ...]:
-    """The fitted fields of effect ``name`` as
-    :class:`~rattlefit.inference.parameters.ParameterSpec` objects named ``"<effect>.<field>"`` (no
-    prior: log-uniform over the range)."""
-    return tuple(
-        ParameterSpec(f"{name}.{field}", unit, lo, hi, fd_log_step=0.3)
-        for field, (unit, lo, hi) in effect_class(name).ranges.items()
-    )
+#: The screening ranks its points on this many of the fit's realisations (a basin stands out
+#: of the Monte Carlo noise on few), then the :data:`SCREEN_FINALISTS` best on all of them.
+SCREEN_REALISATIONS = 2
+SCREEN_FINALISTS = 4
 
 
 #: The alternatives of (film half-length, drag torque) in the screening, as factors on their
@@ -114,3 +108,17 @@ def free_alternatives(z: np.ndarray, problem) -> np.ndarray:
         row[i_drag] = scaled(i_drag, f_drag)
         rows.append(row)
     return np.stack(rows)
+
+
+def screen(trial: Trial, name: str, z_base) -> tuple[np.ndarray, float, float]:
+    """The best start for effect ``name`` from ``z_base`` (every effect absent), by
+    successive halving: every screening point (:func:`screen_points`) costed on the first
+    :data:`SCREEN_REALISATIONS` realisations, the :data:`SCREEN_FINALISTS` cheapest on all of
+    them. Returns the start, the cost at ``z_base`` and the start's (both on all)."""
+    starts = trial.dried(screen_points(z_base, trial.candidates[name], trial.problem))
+    m = min(SCREEN_REALISATIONS, trial.problem.y0.shape[1])
+    rough = costs(trial, starts, realisations=np.arange(m))
+    finalists = starts[np.argsort(rough, kind="stable")[:SCREEN_FINALISTS]]
+    cost = costs(trial, np.concatenate([z_base[None], finalists]))
+    k = int(np.argmin(cost[1:]))
+    return finalists[k], float(cost[0]), float(cost[1 + k])

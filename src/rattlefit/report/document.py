@@ -278,6 +278,13 @@ def _findings_table(diag: dict, paths: list[str]) -> str:
     )
 
 
+def _interval_words(interval, unit: str) -> str:
+    """`` (95 %: lo–hi)`` in display units, or nothing without an interval."""
+    if not interval:
+        return ""
+    return f" (95 %: {shown(interval[0], unit)}–{shown(interval[1], unit)})"
+
+
 def _diagnosis_section(diag: dict | None, paths: list[str], recordings) -> str:
     if diag is None:
         return ""
@@ -293,13 +300,21 @@ def _diagnosis_section(diag: dict | None, paths: list[str], recordings) -> str:
     for e in diag["effects"]:
         size = ", ".join(
             f"{k} {shown(v['value'], v['unit'])} {display_unit(v['unit'])}".rstrip()
+            + _interval_words(e.get("intervals", {}).get(k), v["unit"])
             for k, v in e.get("parameters", {}).items()
         )
+        if e.get("failure"):
+            judged = ("failed", "—", escape(e["failure"]))
+        else:
+            judged = (
+                f"{e['chi2_with']:.1f}",
+                f"{100 * e['gap_closed']:.0f} %",
+                f"{e['p_value']:.2g}",
+            )
         rows.append(
             f'<tr data-effect="{escape(e["name"])}"><td>{escape(e["name"])}</td>'
-            f'<td class="num">{e["chi2_without"]:.1f} → {e["chi2_with"]:.1f}</td>'
-            f'<td class="num">{100 * e["gap_closed"]:.0f} %</td>'
-            f'<td class="num">{e["p_value"]:.2g}</td>'
+            f'<td class="num">{e["chi2_without"]:.1f} → {judged[0]}</td>'
+            f'<td class="num">{judged[1]}</td><td class="num">{judged[2]}</td>'
             f"<td>{'yes' if e['supported'] else 'no'}</td><td>{escape(size)}</td></tr>"
         )
     parts.append(f'<table class="effects">{head}{"".join(rows)}</table>')

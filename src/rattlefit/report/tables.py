@@ -179,7 +179,18 @@ def format_diagnosis(diag: Diagnosis) -> str:
         ("effect", "χ² without → with", "gap closed", "p", "p after", "supported", "fitted size")
     ]
     for o in diag.outcomes:
-        size = ", ".join(f"{k} {_si(v, o.units[k])}" for k, v in o.values.items())
+        size = ", ".join(
+            f"{k} {_si(v, o.units[k])}"
+            + (
+                f" [{_si(o.intervals[k][0], o.units[k])} – {_si(o.intervals[k][1], o.units[k])}]"
+                if k in o.intervals
+                else ""
+            )
+            for k, v in o.values.items()
+        )
+        if o.failure:
+            rows.append((o.name, f"{o.chi2_without:.1f} → failed", "—", "—", "—", "no", size))
+            continue
         rows.append(
             (
                 o.name,
@@ -195,6 +206,7 @@ def format_diagnosis(diag: Diagnosis) -> str:
     table = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
     table.insert(1, "  ".join("-" * w for w in widths))
     lines += ["", *table, ""]
+    lines += [f"failed: {o.name} ({o.failure})" for o in diag.outcomes if o.failure]
     lines += [f"not fitted: {name} ({why})" for name, why in diag.skipped.items()]
     lines += [f"warning: {w}" for w in diag.warnings]
     lines.append(f"seed {diag.seed}; {diag.wall_time:.0f} s")

@@ -1,0 +1,81 @@
+"""Two effects together: tried when the best single candidate leaves a significant misfit.
+
+A recording can carry two unmodelled effects, and then neither alone closes the band gap.
+The best supported single candidate is paired with each of the next
+:data:`PAIR_PARTNERS` supported ones: both start at their own fitted sizes (the film
+half-lengths and the drag torque where the better one put them) and are re-fitted together.
+The pair is judged like a single effect against the model without effects, and in addition
+against its better member alone: the second effect must remove a significant part of what
+the first leaves (an F-test at the same level, and a drop above the Monte Carlo noise) to
+be named.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from scipy import stats
+
+from .result import EffectOutcome
+from .trial import Z95_ONE_SIDED, Trial, judge_effect, refit
+
+#: How many of the next supported candidates the best one is paired with.
+PAIR_PARTNERS = 2
+
+
+def pair_candidates(outcomes: list[EffectOutcome]) -> list[tuple[EffectOutcome, EffectOutcome]]:
+    """The pairs worth fitting: the supported single candidate with the least misfit, with
+    each of the next :data:`PAIR_PARTNERS` supported ones."""
+    supported = sorted(
+        (o for o in outcomes if o.supported and not o.failure and "+" not in o.name),
+        key=lambda o: o.chi2_with,
+    )
+    return [(supported[0], o) for o in supported[1 : 1 + PAIR_PARTNERS]]
+
+
+def pair_name(first: EffectOutcome, second: EffectOutcome) -> str:
+    """The name of two effects fitted together, ``"<first>+<second>"``."""
+    return f"{first.name}+{second.name}"
+
+
+def pair_start(trial: Trial, second: str, z_first, z_second):
+    """The first effect's fitted point with the second effect's fields at its own fit."""
+    z = z_first.copy()
+    idx = trial.candidates[second]
+    z[idx] = z_second[idx]
+    return z
+
+
+def beyond_single(trial: Trial, pair: EffectOutcome, single: EffectOutcome, level: float):
+    """``pair`` with ``p_beyond`` (F-test of its χ² against ``single``'s, the second
+    effect's fields as the extra degrees of freedom) and ``beyond_single`` (p below
+    ``level`` and the drop above the Monte Carlo noise of a difference of two χ²s)."""
+    d = len(trial.fields(pair.name)) - len(trial.fields(single.name))
+    dof_with = max(trial.dof - len(trial.fields(pair.name)), 1)
+    delta = single.chi2_with - pair.chi2_with
+    f_stat = (delta / d) / max(pair.chi2_with / dof_with, 1e-12)
+    p = float(stats.f.sf(f_stat, d, dof_with)) if delta > 0 else 1.0
+    n = trial.y0.shape[1]
+    var = 4.0 * (max(single.chi2_with, trial.dof) + max(pair.chi2_with, trial.dof)) / (n + 1)
+    clear = bool(p < level and delta > Z95_ONE_SIDED * math.sqrt(var))
+    return dataclasses.replace(pair, p_beyond=p, beyond_single=clear)
+
+
+def try_pair(
+    trial: Trial,
+    first: EffectOutcome,
+    second: EffectOutcome,
+    fitted: dict,
+    chi2_without: float,
+    level: float,
+) -> tuple[EffectOutcome, object]:
+    """The two effects fitted together from their single fits (``fitted``: name → fitted
+    point) and judged: the outcome (named ``"<first>+<second>"``) and its fitted point."""
+    name = pair_name(first, second)
+    z0 = pair_start(trial, second.name, fitted[first.name], fitted[second.name])
+    z_fit = refit(trial, z0, trial.held(name))
+    outcome = judge_effect(trial, name, chi2_without, z_fit, level)
+    if outcome.failure:
+        return outcome, z_fit
+    return beyond_single(trial, outcome, first, level), z_fit

@@ -1,0 +1,256 @@
+"""What every candidate's trial in a diagnosis shares, and how one effect is fitted and judged.
+
+A :class:`Trial` is the identification's problem with every candidate effect added at its
+absent end — one compiled program, so that the model without effects and each effect's fit
+are simulated on the same realisations — with the identification's noise model and the
+fresh release states of the out-of-sample comparison. The functions here cost points of
+that problem (:func:`costs`), re-fit a few coordinates (:func:`refit`), and judge a fitted
+effect against the model without effects (:func:`judge_effect`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from scipy import stats
+
+from ..inference.forward import evaluate
+from ..inference.noise import NoiseModel
+from ..inference.parameters import Z_END, ParameterSpec
+from ..inference.problem import Problem
+from ..inference.profile import polish_profile
+from ..io.recording import Recording
+from ..physics.effects import absent, effect_class
+from .result import EffectOutcome, gap_closed
+
+#: One-sided 95 % quantile of the standard normal (the χ² drop's Monte Carlo allowance).
+Z95_ONE_SIDED = 1.645
+
+
+@dataclasses.dataclass(frozen=True)
+class Trial:
+    """What every effect's trial shares.
+
+    problem : the identification's problem (its realisations and band spread) with every
+        candidate effect added at its absent end: one compiled program, so that the model
+        without effects and each effect's fit are the same realisations.
+    noise, data, dof : the identification's noise model, measured features (R, B) and
+        degrees of freedom.
+    y0 : fresh release states of the final comparison.
+    iterations : Gauss–Newton iterations per fit.
+    nuisances : coordinates never re-fitted: the parameters with a prior, and the film
+        half-length of dry recordings, held at its dry end (dry flanks have no oil film, and
+        a film fitted to them would absorb dissipation that is in the contact).
+    candidates : each effect's coordinates in ``problem``.
+    dry : the film coordinates of dry recordings (part of ``nuisances``).
+    """
+
+    problem: Problem
+    noise: NoiseModel
+    data: np.ndarray
+    y0: np.ndarray
+    dof: int
+    iterations: int
+    nuisances: list[int]
+    candidates: dict[str, list[int]]
+    dry: list[int] = dataclasses.field(default_factory=list)
+
+    def dried(self, zs: np.ndarray) -> np.ndarray:
+        """``zs`` (…, P) with the dry recordings' film half-lengths at their dry end."""
+        zs = np.array(zs, dtype=float, copy=True)
+        zs[..., self.dry] = -Z_END
+        return zs
+
+    def fields(self, name: str) -> list[int]:
+        """Coordinates of effect ``name``, or of every effect of ``"<effect>+<effect>"``."""
+        return [i for n in name.split("+") for i in self.candidates[n]]
+
+    def held(self, name: str | None = None) -> list[int]:
+        """Coordinates held fixed in a fit of effect ``name`` (None: of no effect; ``"a+b"``:
+        of two together): the nuisances and every other effect's fields."""
+        fitted = set(self.fields(name)) if name else set()
+        others = [i for idx in self.candidates.values() for i in idx if i not in fitted]
+        return sorted(self.nuisances + others)
+
+
+def whitened_rows(trial: Trial, mean: np.ndarray) -> np.ndarray:
+    """The identification's whitened data rows for mean features ``mean`` (R, B)."""
+    sigma = np.asarray(trial.problem.sigma)
+    return trial.noise.whiten @ ((trial.data - mean) / sigma).reshape(-1)
+
+
+def residual_rows(trial: Trial, zs, realisations=None) -> np.ndarray:
+    """Whitened data rows and prior rows at each point of ``zs``: (K, n); ``realisations``
+    (indices into the fit's) averages only those."""
+    problem = trial.problem
+    mean = np.asarray(problem.mean_of(evaluate(problem, zs, realisations=realisations)))
+    return np.stack(
+        [
+            np.concatenate([whitened_rows(trial, mean[k]), problem.prior_rows(np.asarray(z))])
+            for k, z in enumerate(zs)
+        ]
+    )
+
+
+def costs(trial: Trial, zs, realisations=None) -> np.ndarray:
+    """The fit's cost (data and prior rows) at each point of ``zs``; +inf where a
+    simulation failed (a non-finite feature)."""
+    cost = np.sum(residual_rows(trial, zs, realisations) ** 2, axis=1)
+    return np.where(np.isfinite(cost), cost, np.inf)
+
+
+def refit_steps(trial: Trial, zs) -> np.ndarray:
+    """Finite-difference steps (K, P) of the re-fits from the points ``zs`` (K, P)."""
+    return np.stack([np.minimum(trial.problem.fd_steps(np.asarray(z)), 1.0) for z in zs])
+
+
+def refit(trial: Trial, z, held: list[int]) -> np.ndarray:
+    """``z`` after ``trial.iterations`` of damped Gauss–Newton on the coordinates not in
+    ``held``."""
+    if not trial.iterations:
+        return z
+    rows = functools.partial(residual_rows, trial)
+    steps = refit_steps(trial, z[None])
+    return polish_profile(rows, z[None], [held], steps, iterations=trial.iterations)[0]
+
+
+def fresh_means(trial: Trial, zs) -> np.ndarray:
+    """Mean features (K, R, B) at the points ``zs`` on the fresh release states."""
+    return np.asarray(trial.problem.mean_of(evaluate(trial.problem, zs, trial.y0)))
+
+
+def chi2s(trial: Trial, zs) -> np.ndarray:
+    """χ² of the data rows at each point of ``zs`` on the fresh release states (K,)."""
+    return np.array([np.sum(whitened_rows(trial, m) ** 2) for m in fresh_means(trial, zs)])
+
+
+def final_chi2(trial: Trial, z) -> tuple[float, np.ndarray]:
+    """χ² of the data rows at ``z`` on the fresh release states, and the mean features."""
+    mean = fresh_means(trial, np.asarray(z)[None])[0]
+    return float(np.sum(whitened_rows(trial, mean) ** 2)), mean
+
+
+def judge_effect(
+    trial: Trial, name: str, chi2_without: float, z_fit, level: float
+) -> EffectOutcome:
+    """The effect's outcome: χ² with it on the fresh realisations against ``chi2_without``
+    (the same realisations without any effect), the F-test at ``level`` and the Monte Carlo
+    noise of the drop."""
+    d = len(trial.fields(name))
+    chi2_with, mean = final_chi2(trial, z_fit)
+    if not np.isfinite(chi2_with):
+        return failed_outcome(trial, name, chi2_without, z_fit)
+    delta = chi2_without - chi2_with
+    # Monte Carlo noise of each χ² from n realisations (cf. the profile threshold)
+    n, dof = trial.y0.shape[1], trial.dof
+    var = 4.0 * max(chi2_without, dof) / (n + 1) + 4.0 * max(chi2_with, dof) / (n + 1)
+    threshold = Z95_ONE_SIDED * math.sqrt(var)
+    dof_with = max(dof - d, 1)
+    f_stat = (delta / d) / max(chi2_with / dof_with, 1e-12)
+    p_value = float(stats.f.sf(f_stat, d, dof_with)) if delta > 0 else 1.0
+    return EffectOutcome(
+        name=name,
+        values=effect_values(trial, name, z_fit),
+        units=effect_units(trial, name),
+        chi2_without=chi2_without,
+        chi2_with=chi2_with,
+        delta_chi2=delta,
+        gap_closed=gap_closed(chi2_without, chi2_with, dof),
+        p_value=p_value,
+        noise_threshold=threshold,
+        supported=bool(p_value < level and delta > threshold),
+        residuals=(trial.data - mean) / np.asarray(trial.problem.sigma),
+        wall_time=0.0,
+        p_after=float(stats.chi2.sf(chi2_with, dof_with)),
+    )
+
+
+def field_key(trial: Trial, name: str, i: int) -> str:
+    """The key of coordinate ``i`` in effect ``name``'s values: its field (``"amplitude"``),
+    or, for two effects together, ``"<effect>.<field>"``."""
+    spec_name = trial.problem.specs[i].name
+    return spec_name if "+" in name else spec_name.split(".", 1)[1]
+
+
+def effect_values(trial: Trial, name: str, z) -> dict[str, float]:
+    """Effect ``name``'s fields at ``z``: key (:func:`field_key`) → value (SI)."""
+    return {
+        field_key(trial, name, i): float(trial.problem.specs[i].value(z[i]))
+        for i in trial.fields(name)
+    }
+
+
+def effect_units(trial: Trial, name: str) -> dict[str, str]:
+    """Effect ``name``'s fields: key (:func:`field_key`) → unit."""
+    return {field_key(trial, name, i): trial.problem.specs[i].unit for i in trial.fields(name)}
+
+
+def failed_outcome(trial: Trial, name: str, chi2_without: float, z_fit) -> EffectOutcome:
+    """The outcome of an effect whose simulation failed at its fitted point (non-finite
+    features on the fresh realisations): never supported, with the reason."""
+    return EffectOutcome(
+        name=name,
+        values=effect_values(trial, name, z_fit),
+        units=effect_units(trial, name),
+        chi2_without=chi2_without,
+        chi2_with=float("nan"),
+        delta_chi2=float("nan"),
+        gap_closed=0.0,
+        p_value=float("nan"),
+        noise_threshold=float("nan"),
+        supported=False,
+        residuals=np.full(np.shape(trial.data), np.nan),
+        wall_time=0.0,
+        p_after=float("nan"),
+        failure="its simulation failed at the fitted size (non-finite features); "
+        "the size is at or beyond what the solver can integrate",
+    )
+
+
+def moves(trial: Trial, z_base, z_fit) -> dict[str, tuple[float, float]]:
+    """How the parameters the effect is fitted with (the film half-lengths, the drag
+    torque) move once it is in: name → (without, with), SI units. A base-model estimate that
+    the effect moves far was biased by its absence."""
+    effect_coords = {i for idx in trial.candidates.values() for i in idx}
+    out = {}
+    for i, spec in enumerate(trial.problem.specs):
+        if i in effect_coords or spec.name.startswith("backlash"):
+            continue
+        if i in trial.nuisances:
+            continue
+        out[spec.name] = (float(spec.value(z_base[i])), float(spec.value(z_fit[i])))
+    return out
+
+
+def effect_specs(name: str) -> tuple[ParameterSpec, ...]:
+    """The fitted fields of effect ``name`` as
+    :class:`~rattlefit.inference.parameters.ParameterSpec` objects named ``"<effect>.<field>"`` (no
+    prior: log-uniform over the range)."""
+    return tuple(
+        ParameterSpec(f"{name}.{field}", unit, lo, hi, fd_log_step=0.3)
+        for field, (unit, lo, hi) in effect_class(name).ranges.items()
+    )
+
+
+def candidate_problem(problem: Problem, names) -> tuple[Problem, dict[str, list[int]]]:
+    """``problem`` with every effect in ``names`` added at its absent end, and each effect's
+    coordinates."""
+    specs, candidates = list(problem.specs), {}
+    for name in names:
+        extra = effect_specs(name)
+        candidates[name] = list(range(len(specs), len(specs) + len(extra)))
+        specs += extra
+    effects = tuple(absent(name) for name in names)
+    return dataclasses.replace(problem, specs=tuple(specs), effects=effects), candidates
+
+
+def dry_films(problem: Problem, recordings: Sequence[Recording]) -> list[int]:
+    """Coordinates of the film half-lengths that only dry recordings use."""
+    lubrication = [r.operating.lubrication for r in recordings]
+    wet = {f for f, lub in zip(problem.films, lubrication, strict=True) if lub != "dry"}
+    dry = {f for f in problem.films} - wet
+    return [i for i, sp in enumerate(problem.specs) if sp.name in dry]
