@@ -17,7 +17,8 @@ beside them:
   Hunt–Crossley contact damping, Coulomb friction with another regularisation or a Stribeck
   coefficient, run-out of one wheel with ovality or with its radial component, a drive ripple
   at another order, a viscosity drift linear in time or through a temperature ramp, a drag
-  that grows with a power of the speed, a notch on one tooth of the driven wheel), with some
+  that grows with a power of the speed, a notch on one tooth of the driven wheel, a flexible
+  secondary shaft with a far inertia and part of the drag on it), with some
   of the clean set's model-form differences mixed in. The acceptable verdicts are the
   catalogue names that describe the effect (for dissipation in contact, any of the three
   dissipative candidates; for two effects, each combination joined by ``+``).
@@ -429,6 +430,56 @@ class PowerLawDrag(InjectedEffect):
         mean = drive.mean_speed * model.r1 / model.r2
         ratio = jnp.maximum(omega2 / mean, 1e-6)
         return -(params.drag_torque / model.r2) * (ratio**self.exponent - 1.0)
+
+
+class FlexibleShaft(InjectedEffect):
+    """The driven gear on a torsionally flexible secondary shaft that ends in an inertia, in
+    the rig's terms: torsional stiffness ``stiffness`` (N m/rad), the far inertia ``inertia``
+    (kg m²), structural damping of loss factor ``loss_factor`` (a dashpot η k/ω at the mode)
+    and a share ``drag_share`` of the bearing drag acting on the far inertia instead of the
+    gear. State: the far inertia's lead over the gear on the pitch circle and its rate."""
+
+    name: ClassVar[str] = "flexible_shaft"
+    expected: ClassVar[tuple[str, ...]] = ("shaft_inertia", "shaft_compliance")
+    units: ClassVar[dict[str, str]] = {
+        "stiffness": "Nm/rad",
+        "inertia": "kgm2",
+        "loss_factor": "1",
+        "drag_share": "1",
+    }
+    states: ClassVar[int] = 2
+    state_units: ClassVar[tuple[str, ...]] = ("m", "m/s")
+
+    stiffness: jax.Array = eqx.field(converter=_array)
+    inertia: jax.Array = eqx.field(converter=_array)
+    loss_factor: float = eqx.field(static=True, default=0.05)
+    drag_share: float = eqx.field(static=True, default=0.3)
+
+    @classmethod
+    def for_mode(cls, pair: str, cd: float, frequency: float, inertia_ratio: float, **kw):
+        """The shaft whose mode (mesh open) is at ``frequency`` (Hz), its far inertia
+        ``inertia_ratio`` times the driven gear's."""
+        g = table2_pair(pair, center_distance_mm=cd)
+        m, r2 = g.equivalent_mass, g.pitch_radius_driven
+        m_s = inertia_ratio * m
+        kappa = (2 * math.pi * frequency) ** 2 * m * m_s / (m + m_s)
+        return cls(stiffness=kappa * r2**2, inertia=m_s * r2**2, **kw)
+
+    def describe(self):
+        return (
+            f"a flexible secondary shaft: torsional stiffness {float(self.stiffness):.4g} N m/rad "
+            f"to a far inertia {float(self.inertia):.4g} kg m², loss factor {self.loss_factor:g}, "
+            f"{100 * self.drag_share:.0f} % of the drag on the far inertia"
+        )
+
+    def coupled(self, t, q, v, state, f_gear, model: RattleModel, params, drive):
+        kappa = self.stiffness / model.r2**2
+        m_s = self.inertia / model.r2**2
+        omega = jnp.sqrt(kappa * (1 / model.mass + 1 / m_s))
+        f_shaft = kappa * state[0] + self.loss_factor * kappa / omega * state[1]
+        moved = self.drag_share * params.drag_torque / model.r2  # from the gear to the far end
+        phi_ddot = -(f_shaft + moved) / m_s - (f_gear + moved + f_shaft) / model.mass
+        return f_shaft + moved, jnp.stack([state[1], phi_ddot])
 
 
 class RippleDrive(Drive):
@@ -844,6 +895,10 @@ def injected_cases() -> list[Case]:
                 ),
                 LinearViscosityDrift(rate=1 / 6),
             ),
+        ),
+        Case(
+            "II", "boundary", 65.6, 20, 16, 0.025, 20.0, 218, "flexible_shaft",
+            effects=(FlexibleShaft.for_mode("II", 65.6, 350.0, 1.0),),
         ),
     ]  # fmt: skip
 

@@ -355,7 +355,9 @@ def test_the_size_interval_is_where_the_profile_rises_by_the_threshold(monkeypat
 
     for chi2_min in (20.0, 2.0 * 27):  # within the dof, then twice what is left
         monkeypatch.setattr(size_module, "chi2s", functools.partial(rising, chi2_min))
-        ((lo, hi),) = size_module.size_intervals(trial, "flank_friction", z_fit, chi2_min).values()
+        intervals = size_module.size_intervals(trial, "flank_friction", z_fit, chi2_min)
+        ((best, lo, hi),) = intervals.values()
+        assert best == pytest.approx(0.05)
         scale = max(1.0, chi2_min / 27)
         noise = np.sqrt(8.0 * max(chi2_min, 27) / (n_final + 1)) / scale
         half = np.sqrt(profile_threshold(noise) * scale / k)  # decades

@@ -289,28 +289,96 @@ def test_absent_effects_leave_the_vector_field_alone(pair2, name):
     drive = rf.Drive.commanded(52.36, 10.472, 16.0)
     params = rf.RattleParams(0.085e-3, 0.02, 0.49, pair2.backlash)
     model = rf.RattleModel.from_geometry(pair2)
-    sol = rf.simulate(
-        model, params, drive, duration=0.2, sample_rate=1e5, burn_in=0.0, rtol=1e-8, atol=1e-12
-    )
-    states = jnp.stack([sol.q, sol.velocity], axis=1)
+    options = dict(duration=0.2, sample_rate=1e5, burn_in=0.0, rtol=1e-8, atol=1e-12)
+    sol = rf.simulate(model, params, drive, **options)
+    plain_states = jnp.stack([sol.q, sol.velocity], axis=1)
 
     def acceleration(m):
-        return np.asarray(
-            jax.vmap(lambda t, y: m.vector_field(t, y, (params, drive))[1])(sol.time, states)
-        )
+        # along the plain trajectory; an effect with a state of its own along its own, where
+        # that state has the values the effect gives it (the plain model sees (q, v) alone)
+        states = plain_states if m.state_size == 2 else full_states(m, params, drive, options)
+        at = lambda t, y: m.vector_field(t, y, (params, drive))[1]  # noqa: E731
+        return np.asarray(jax.vmap(at)(sol.time, states)), states
 
-    plain = acceleration(model)
+    plain, _ = acceleration(model)
     assert np.abs(plain).max() > 100 * 0.02 / pair2.pitch_radius_driven / float(model.mass)
     drag = 0.02 / pair2.pitch_radius_driven / float(model.mass)
-    changed = acceleration(model.with_effects(fx.absent(name)))
+    changed, states = acceleration(model.with_effects(fx.absent(name)))
+    if states.shape[1] > 2:
+        plain, _ = acceleration_at(model, params, drive, sol.time, states[:, :2])
     assert np.all(np.abs(changed - plain) < 1e-3 * drag + 1e-4 * np.abs(plain))
     # ... while halfway up its (log) range it does matter
     cls = type(fx.absent(name))
     some = cls(**{k: lo * (hi / lo) ** 0.5 for k, (_, lo, hi) in cls.ranges.items()})
-    assert np.any(np.abs(acceleration(model.with_effects(some)) - plain) > 1e-2 * drag)
+    changed, states = acceleration(model.with_effects(some))
+    plain, _ = acceleration_at(model, params, drive, sol.time, states[:, :2])
+    assert np.any(np.abs(changed - plain) > 1e-2 * drag)
     for field, (unit, lo, hi) in cls.ranges.items():
         assert float(getattr(fx.absent(name), field)) == lo < hi
         assert unit
+
+
+def acceleration_at(model, params, drive, ts, states):
+    """The model's acceleration at each state (rows) and time."""
+    at = lambda t, y: model.vector_field(t, y, (params, drive))[1]  # noqa: E731
+    return np.asarray(jax.vmap(at)(ts, states)), states
+
+
+def full_states(model, params, drive, options):
+    """The whole state (q, v and the effects' own components) along the model's trajectory
+    from rest on the drive flank, sampled as ``rf.simulate`` samples (which returns q and v
+    alone)."""
+    import diffrax
+
+    ts = jnp.arange(round(options["duration"] * options["sample_rate"])) / options["sample_rate"]
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(model.vector_field),
+        diffrax.Tsit5(),
+        t0=0.0,
+        t1=float(ts[-1]),
+        dt0=1e-6,
+        y0=model.full_state(jnp.array([-0.5 * float(params.backlash), 0.0])),
+        args=(params, drive),
+        saveat=diffrax.SaveAt(ts=ts),
+        stepsize_controller=diffrax.PIDController(rtol=options["rtol"], atol=options["atol"]),
+        max_steps=2_000_000,
+    )
+    return sol.ys
+
+
+def test_shaft_inertia_rings_at_its_mode_and_keeps_the_momentum(pair2):
+    # With the mesh open (the gear mid-backlash, no film, no drag, a steady drive) the gear
+    # and the shaft's inertia are two masses on a spring. Their relative displacement φ rings
+    # at f√(1 − ζ²) and decays at ζ·2πf, and the momentum m q̇ + m_s (q̇ + φ̇) stays zero,
+    # so the gear moves by q = −m_s/(m + m_s) · (φ − φ0): through the simulator, q(t) is a
+    # closed form.
+    ratio, f, zeta = 1.0, 350.0, 0.02
+    shaft = fx.ShaftInertia(inertia_ratio=ratio, frequency=f, damping_ratio=zeta)
+    model = rf.RattleModel.from_geometry(pair2).with_effects(shaft)
+    params = rf.RattleParams(0.0, 0.0, 0.49, pair2.backlash)
+    phi0 = 0.4 * pair2.backlash  # the gear then moves by at most 0.4 of half the backlash
+    sol = rf.simulate(
+        model,
+        params,
+        _steady_drive(),
+        duration=0.02,
+        sample_rate=1e5,
+        y0=[0.0, 0.0, phi0, 0.0],
+        **STEADY,
+    )
+    t = np.asarray(sol.time)
+    w = 2 * math.pi * f
+    wd = w * math.sqrt(1 - zeta**2)
+    phi = (
+        phi0
+        * np.exp(-zeta * w * t)
+        * (np.cos(wd * t) + zeta / math.sqrt(1 - zeta**2) * np.sin(wd * t))
+    )
+    q = -ratio / (1 + ratio) * (phi - phi0)
+    np.testing.assert_allclose(np.asarray(sol.q), q, rtol=0, atol=1e-6 * phi0)
+    assert np.ptp(q) > 0.5 * phi0  # it did ring
+    assert model.state_size == 4
+    assert model.state_atol((1e-12, 1e-9)) == (1e-12, 1e-9, 1e-12, 1e-9)
 
 
 def test_unknown_effect_names_the_known_ones():

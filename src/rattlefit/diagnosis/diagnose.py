@@ -252,16 +252,20 @@ def try_pairs(trial: Trial, diag: Diagnosis, fitted: dict, level: float, say) ->
 
 
 def with_interval(trial: Trial, diag: Diagnosis, fitted: dict, say) -> Diagnosis:
-    """``diag`` with the size interval (:func:`~rattlefit.diagnosis.size.size_intervals`)
-    of the band candidate its verdict names."""
+    """``diag`` with the size of the band candidate its verdict names estimated with an
+    interval (:func:`~rattlefit.diagnosis.size.size_intervals`): its ``values`` hold the
+    profile's estimate, its ``intervals`` the 95 % interval."""
     named = diag.explaining()
     if named is None:
         return diag
     say(f"profiling the size of {named.name} …")
-    intervals = size_intervals(trial, named.name, fitted[named.name], named.chi2_with)
-    outcomes = [
-        dataclasses.replace(o, intervals=intervals) if o is named else o for o in diag.outcomes
-    ]
+    profiled = size_intervals(trial, named.name, fitted[named.name], named.chi2_with)
+    sized = dataclasses.replace(
+        named,
+        values={**named.values, **{k: best for k, (best, _, _) in profiled.items()}},
+        intervals={k: (lo, hi) for k, (_, lo, hi) in profiled.items()},
+    )
+    outcomes = [sized if o is named else o for o in diag.outcomes]
     return dataclasses.replace(diag, outcomes=outcomes)
 
 

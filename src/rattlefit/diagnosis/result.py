@@ -45,7 +45,8 @@ class EffectOutcome:
         never supported.
     intervals : 95 % intervals (SI) of the effect's size (its first field), from a profile
         of the χ² over it (:mod:`rattlefit.diagnosis.size`): key → (lower, upper); computed
-        for the effects a verdict names, empty otherwise.
+        for the effects a verdict names (whose ``values`` then hold the profile's estimate),
+        empty otherwise.
 
     Two effects fitted together have the name ``"<effect>+<effect>"``, their values keyed
     ``"<effect>.<field>"``, and:
@@ -90,7 +91,7 @@ class EffectOutcome:
             unit, scale = ("µm", 1e6) if self.units[key] == "m" else (self.units[key], 1.0)
             unit = "" if unit == "1" else f" {unit}"
             parts.append(
-                f"{key} {scale * value:.2g}{unit} (95 %: {scale * lo:.2g}–{scale * hi:.2g})"
+                f"{key} {scale * value:.3g}{unit} (95 %: {scale * lo:.3g}–{scale * hi:.3g})"
             )
         return "; ".join(parts)
 

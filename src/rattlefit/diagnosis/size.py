@@ -37,11 +37,14 @@ def size_points(trial: Trial, i: int, z_fit) -> tuple[np.ndarray, np.ndarray]:
     return points, np.log10(sizes)
 
 
-def size_interval(trial: Trial, name: str, i: int, z_fit, chi2_fit: float) -> tuple[float, float]:
-    """The 95 % interval (SI) of the field at coordinate ``i`` of effect ``name`` (or of
-    ``"<effect>+<effect>"``), from the fitted point ``z_fit`` whose χ² on the fresh
-    realisations is ``chi2_fit``. An end at a range's end or at the last value profiled is a
-    bound."""
+def size_interval(
+    trial: Trial, name: str, i: int, z_fit, chi2_fit: float
+) -> tuple[float, float, float]:
+    """The estimate and 95 % interval (SI) of the field at coordinate ``i`` of effect
+    ``name`` (or of ``"<effect>+<effect>"``), from the fitted point ``z_fit`` whose χ² on the
+    fresh realisations is ``chi2_fit``: ``(estimate, lower, upper)``, the estimate the
+    profile's least χ² (the fitted value or a profiled one). An end at a range's end or at
+    the last value profiled is a bound."""
     spec = trial.problem.specs[i]
     points, logs = size_points(trial, i, z_fit)
     held = [sorted([*trial.held(name), i])] * len(points)
@@ -64,12 +67,13 @@ def size_interval(trial: Trial, name: str, i: int, z_fit, chi2_fit: float) -> tu
     root = np.sqrt(np.maximum(chi2 - best, 0.0) / scale)
     profile = {float(t): (float(r), None) for t, r in zip(logs, root, strict=True)}
     (lo, hi), _ = profile_interval(profile, math.sqrt(profile_threshold(noise_sd)))
-    return 10.0**lo, 10.0**hi
+    return 10.0 ** logs[int(np.argmin(chi2))], 10.0**lo, 10.0**hi
 
 
 def size_intervals(trial: Trial, name: str, z_fit, chi2_fit: float) -> dict[str, tuple]:
     """:func:`size_interval` of the first field of each effect in ``name`` (one, or two
-    joined by ``+``): key (:func:`~rattlefit.diagnosis.trial.field_key`) → (lower, upper)."""
+    joined by ``+``): key (:func:`~rattlefit.diagnosis.trial.field_key`) →
+    (estimate, lower, upper)."""
     out = {}
     for effect in name.split("+"):
         i = trial.candidates[effect][0]

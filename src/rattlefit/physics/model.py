@@ -252,6 +252,14 @@ class Effect(eqx.Module):
       speed-dependent drag; it is given the contact force ``f_mesh`` already computed.
     * :meth:`adjust` — the parameters in force at time ``t``, e.g. a viscosity that drifts.
 
+    An effect may also carry state of its own (another degree of freedom, e.g. a shaft with
+    inertia): ``states`` components appended to the model's ``(q, v)``, in the units
+    ``state_units`` (``"m"`` or ``"m/s"``, which pick the solver's absolute tolerance), zero at
+    the start, and the hook
+
+    * :meth:`coupled` — given its state and the net force on the driven gear from everything
+      else, the force it adds on the pitch circle and its state's time derivative.
+
     Two class attributes let :mod:`rattlefit.diagnosis.diagnose` fit the effect: ``name`` (its short
     name) and ``ranges`` (fitted field → (unit, lower, upper)); the lower end of each range
     stands for the effect being absent. :mod:`rattlefit.physics.effects` holds the catalogue.
@@ -259,6 +267,8 @@ class Effect(eqx.Module):
 
     name: ClassVar[str] = "effect"
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {}
+    states: ClassVar[int] = 0
+    state_units: ClassVar[tuple[str, ...]] = ()
 
     def gap_error(self, t, theta1, model: RattleModel, params: RattleParams, drive: Drive):
         return jnp.zeros(())
@@ -268,6 +278,11 @@ class Effect(eqx.Module):
 
     def adjust(self, t, params: RattleParams, model: RattleModel, drive: Drive) -> RattleParams:
         return params
+
+    def coupled(self, t, q, v, state, f_gear, model: RattleModel, params, drive: Drive):
+        """(force on the pitch circle, N; d state/dt) for an effect with ``states`` > 0;
+        ``f_gear`` is the net force on the driven gear from everything else (N)."""
+        return jnp.zeros(()), jnp.zeros((self.states,))
 
     def replace(self, **values) -> Effect:
         """The same effect with the named fields replaced (values as arrays)."""
@@ -348,6 +363,31 @@ class RattleModel(eqx.Module):
         """The same model with extra effects appended."""
         return eqx.tree_at(lambda m: m.effects, self, self.effects + tuple(effects))
 
+    # -- the state ----------------------------------------------------------------------
+    @property
+    def state_size(self) -> int:
+        """Components of the state: ``(q, v)`` and every effect's own (:attr:`Effect.states`)."""
+        return 2 + sum(e.states for e in self.effects)
+
+    def full_state(self, y0):
+        """``y0`` (…, 2) or (…, :attr:`state_size`) as the full state: the effects' own
+        components appended at zero."""
+        y0 = jnp.asarray(y0, dtype=float)
+        extra = self.state_size - y0.shape[-1]
+        if extra == 0:
+            return y0
+        return jnp.concatenate([y0, jnp.zeros((*y0.shape[:-1], extra))], axis=-1)
+
+    def state_atol(self, atol):
+        """The solver's absolute tolerance per state component from ``atol``: one number for
+        all, or ``(atol of q in m, atol of v in m/s)``, extended to the effects' components by
+        their units (a tuple of floats, or the one number)."""
+        if isinstance(atol, float) or np.ndim(atol) == 0:
+            return atol
+        atol_q, atol_v = atol
+        units = [u for e in self.effects for u in e.state_units]
+        return (atol_q, atol_v, *(atol_q if u == "m" else atol_v for u in units))
+
     # -- the constitutive laws ------------------------------------------------------------
     def mesh_stiffness(self, theta1, stiffness_scale=1.0):
         """K(θ1) of eq. (4), N/m: the sum over the tooth pairs in contact.
@@ -415,9 +455,14 @@ class RattleModel(eqx.Module):
         theta1, acc1 = drive.angle_and_acceleration(t)
         f_mesh, f_squeeze = self.forces(t, q, v, params, drive, theta1=theta1)
         f_extra = sum((e.force(t, q, v, f_mesh, self, params, drive) for e in self.effects), 0.0)
-        drag = params.drag_torque / self.r2
-        acc = (f_mesh + f_squeeze + f_extra - drag) / self.mass - self.r1 * acc1
-        return jnp.stack([v, acc])
+        f_gear = f_mesh + f_squeeze + f_extra - params.drag_torque / self.r2
+        derivatives, at = [], 2
+        for e in (e for e in self.effects if e.states):
+            f, d = e.coupled(t, q, v, y[at : at + e.states], f_gear, self, params, drive)
+            f_gear, at = f_gear + f, at + e.states
+            derivatives.append(d)
+        acc = f_gear / self.mass - self.r1 * acc1
+        return jnp.concatenate([jnp.stack([v, acc]), *derivatives])
 
     # -- closed-form facts ---------------------------------------------------------------
     def rattle_threshold(self, params: RattleParams, drive: Drive) -> bool:

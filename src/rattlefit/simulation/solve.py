@@ -78,13 +78,14 @@ def _solve(
     sensitivity: str,
 ):
     ts = jnp.arange(n_samples) / sample_rate
+    atol = model.state_atol(atol)
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(model.vector_field),
         diffrax.Tsit5(),
         t0=-burn_in,
         t1=ts[-1],
         dt0=1e-5,
-        y0=y0,
+        y0=model.full_state(y0),
         args=(params, drive),
         saveat=diffrax.SaveAt(ts=ts),
         stepsize_controller=diffrax.PIDController(
@@ -149,13 +150,13 @@ def solve_rows(
 
     ys, steps, result = solve_lockstep(
         field,
-        y0,
+        models.full_state(y0),
         (models, params, drives),
         t0=-burn_in,
         n_samples=n_samples,
         sample_rate=sample_rate,
         rtol=rtol,
-        atol=atol,
+        atol=models.state_atol(atol),
         max_steps=max_steps,
     )
     ts = jnp.arange(n_samples) / sample_rate
@@ -218,7 +219,8 @@ def simulate(
         v (m/s) alike, or is a pair (q, v) (:func:`absolute_tolerances` gives the fit's).
     max_steps : solver step budget; exceeding it is a failure reported in ``result``.
     sensitivity : ``"forward"`` (forward-mode derivatives, for Jacobians) or ``"reverse"``.
-    y0 : initial (q, v) at ``-burn_in``; default at rest on the drive flank.
+    y0 : initial (q, v) at ``-burn_in`` (effects with a state of their own start it at zero),
+        or the full state; default at rest on the drive flank.
     """
     n = round(duration * sample_rate)
     if n < 2:

@@ -1,11 +1,12 @@
 """Physical effects outside the seed paper's one-dof model, each a self-contained plug-in.
 
 Every effect is an :class:`~rattlefit.physics.model.Effect`: an immutable module whose array fields
-are its parameters (SI units) and which changes the model through one of three hooks — a
-kinematic error of the flank gap, an extra force on the pitch circle, or parameters that
-change in time. Add one to a model with ``model.with_effects(Runout(...))``; nothing else in
-the simulator knows about it. :func:`rattlefit.diagnosis.diagnose.diagnose` fits each effect in
-:data:`EFFECTS` on top of an identification and reports how much of the misfit it removes.
+are its parameters (SI units) and which changes the model through its hooks — a kinematic
+error of the flank gap, an extra force on the pitch circle, parameters that change in time,
+or a force coupled to a state of its own. Add one to a model with
+``model.with_effects(Runout(...))``; nothing else in the simulator knows about it.
+:func:`rattlefit.diagnosis.diagnose.diagnose` fits each effect in :data:`EFFECTS` on top of
+an identification and reports how much of the misfit it removes.
 
 Each class declares ``ranges``: its fitted fields with (unit, lower, upper). The lower end
 stands for the effect being absent: there it changes the model's acceleration by less than
@@ -15,9 +16,9 @@ trajectory (tests/test_effects.py); the upper end is generous for a production g
 Each effect lives in its own module of this package; to add one, write a module like
 :mod:`.flank_friction` and list its class in :data:`EFFECTS`.
 
-What cannot be a plug-in here: a torsionally flexible *shaft with inertia* adds degrees of
-freedom to the state. :class:`ShaftCompliance` is its quasi-static limit (the shaft's
-stiffness in series with the mesh), which is what a one-dof model can hold.
+An effect may carry state of its own: :class:`ShaftInertia`, a secondary shaft with its own
+inertia behind the driven gear, adds its two components to the model's ``(q, v)``;
+:class:`ShaftCompliance` is the quasi-static limit of a shaft without inertia.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from .mesh_damping import MeshDamping
 from .pitch_point_friction import PitchPointFriction
 from .runout import Runout
 from .shaft_compliance import ShaftCompliance
+from .shaft_inertia import ShaftInertia
 from .speed_dependent_drag import SpeedDependentDrag
 from .tooth_defect import ToothDefect
 from .tooth_errors import ToothErrors
@@ -43,6 +45,7 @@ __all__ = [
     "PitchPointFriction",
     "Runout",
     "ShaftCompliance",
+    "ShaftInertia",
     "SpeedDependentDrag",
     "ToothDefect",
     "ToothErrors",
@@ -66,6 +69,7 @@ EFFECTS: dict[str, type[Effect]] = {
         MeshDamping,
         PitchPointFriction,
         ToothDefect,
+        ShaftInertia,
     )
 }
 

@@ -16,7 +16,8 @@ class ShaftCompliance(Effect):
     The contact force becomes ``F / (1 + K(θ1) · compliance)``, K the mesh stiffness of
     eq. (4) and ``compliance`` the shafts' torsional compliance referred to the pitch circle
     (m/N): the mesh-stiffness variation flattens as well as its level falling, which a scale
-    on K cannot do. A shaft with its own inertia is another degree of freedom, not a plug-in.
+    on K cannot do. A shaft with its own inertia is
+    :class:`~rattlefit.physics.effects.ShaftInertia`.
     """
 
     name: ClassVar[str] = "shaft_compliance"
