@@ -932,7 +932,7 @@ def report_identify(res: dict) -> list[str]:
             f"χ²={idf['chi2']:.1f} on {idf['dof']} dof"
         )
         for k, v in idf["parameters"].items():
-            est = "not identified" if v["estimate"] is None else f"{v['estimate']:.4g}"
+            est = f"{v['estimate']:.4g}" + ("" if v.get("identified") else " (not identified)")
             out.append(f"   {k:>16s} = {est} [{v['lower']:.3g}, {v['upper']:.3g}] {v['unit']}")
     out.append("")
     return out

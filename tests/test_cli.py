@@ -152,7 +152,7 @@ def test_identify_writes_json_and_plots(tmp_path):
         p = doc["parameters"][name]
         assert p["unit"] == unit
         assert p["lower"] <= p["upper"]
-        assert p["estimate"] is None or p["lower"] <= p["estimate"] <= p["upper"]
+        assert p["lower"] <= p["estimate"] <= p["upper"]  # always a point estimate
     assert doc["fit"]["seed"] == 0
     pngs = sorted(x.name for x in plots.iterdir())
     assert "correlation.png" in pngs and any(x.startswith("fit_0_") for x in pngs)

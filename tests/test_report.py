@@ -18,8 +18,8 @@ from rattlefit.report import format_table
 
 def _result(chi2, dof, chi2_recordings=(), recordings=(), regime_share=(), profile=None):
     a = ParameterEstimate("a", "m", 8.5e-5, 6e-5, 1.1e-4, True)
-    tb = ParameterEstimate("drag_torque", "N m", None, 0.0, 0.05, False, "upper")
-    mu = ParameterEstimate("viscosity", "Pa s", None, 0.3, 0.6, False, "interval")
+    tb = ParameterEstimate("drag_torque", "N m", 0.02, 0.0, 0.05, False, "upper")
+    mu = ParameterEstimate("viscosity", "Pa s", 0.45, 0.3, 0.6, False, "interval")
     return FitResult(
         parameters={"a": a, "drag_torque": tb, "viscosity": mu},
         correlation=np.eye(3),
@@ -193,14 +193,16 @@ def _check_parameters(page: _Page, fit: dict) -> None:
         row = page.rows[name]
         assert float(row["attrs"]["data-lower"]) == p["lower"]
         assert float(row["attrs"]["data-upper"]) == p["upper"]
-        if p["estimate"] is not None:
-            assert float(row["attrs"]["data-estimate"]) == p["estimate"]
-            assert f"|{_g4(p['estimate'], p['unit'])}|" in row["text"]
-        assert f"[{_g4(p['lower'], p['unit'])}, {_g4(p['upper'], p['unit'])}]" in row["text"]
+        # every parameter has its estimate (the optimum), identified or not
+        assert float(row["attrs"]["data-estimate"]) == p["estimate"]
+        assert f"|{_g4(p['estimate'], p['unit'])}|" in row["text"]
         if p["bound"] == "lower":
-            assert f"≥ {_g4(p['lower'], p['unit'])}" in row["text"]
-        if p["bound"] == "upper":
-            assert f"≤ {_g4(p['upper'], p['unit'])}" in row["text"]
+            assert f"|≥ {_g4(p['lower'], p['unit'])}|" in row["text"]
+        elif p["bound"] == "upper":
+            assert f"|≤ {_g4(p['upper'], p['unit'])}|" in row["text"]
+        else:
+            lo, hi = _g4(p["lower"], p["unit"]), _g4(p["upper"], p["unit"])
+            assert f"|[{lo}, {hi}]|" in row["text"]
 
 
 @pytest.fixture(scope="module")
@@ -254,8 +256,8 @@ def _handmade_fit(recording=BOUNDARY) -> dict:
     measured = -6.0 - 1.5 * np.log10(f / 5.0)
     p = {
         "a": ("m", 8.5e-5, 7.1e-5, 9.9e-5, True, None),
-        "drag_torque": ("N m", None, 0.0, 0.0437, False, "upper"),
-        "viscosity": ("Pa s", None, 0.3, 0.81, False, "prior"),
+        "drag_torque": ("N m", 0.0152, 0.0, 0.0437, False, "upper"),
+        "viscosity": ("Pa s", 0.49, 0.3, 0.81, False, "prior"),
     }
     keys = ("unit", "estimate", "lower", "upper", "identified", "bound")
     return {

@@ -145,7 +145,9 @@ def assemble_result(
     z_lo, z_hi = interval_ends(unc, options)
     p = len(problem.specs)
     return FitResult(
-        parameters=estimates_of(problem, z, z_lo, z_hi),
+        parameters=estimates_of(
+            problem, z, z_lo, z_hi, [r.recording.operating.lubrication for r in rigs]
+        ),
         correlation=corr,
         names=[s.name for s in problem.specs],
         chi2=lap.chi2,

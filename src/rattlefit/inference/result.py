@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 
 import jax.numpy as jnp
 import numpy as np
 from scipy import stats
 
 from ..physics.model import RattleParams
+from .advice import what_would_pin
 from .noise import NoiseModel
 from .options import FitOptions
 from .parameters import ParameterSpec
@@ -30,7 +32,8 @@ class ParameterEstimate:
     """A fitted parameter: its estimate and 95 % interval, in SI units (``unit``).
 
     name, unit : the parameter (e.g. ``film_half_length``, ``"m"``).
-    estimate : the value at the optimum when ``identified``, else None.
+    estimate : the best estimate: the value at the optimum (the least cost the profiles
+        found), identified or not.
     lower, upper : the 95 % interval; for ``a`` and ``drag_torque`` a lower end of 0 means
         the interval runs into dry flanks or no drag.
     identified : two-sided, inside the range, narrower than :data:`IDENTIFIED_RATIO` and,
@@ -38,17 +41,20 @@ class ParameterEstimate:
     bound : when not identified, what the data support: ``"lower"`` or ``"upper"`` (one side
         only), ``"interval"`` (two-sided but wide), ``"prior"`` (mostly the prior's), or
         None (neither side).
-    map_value : the value at the optimum, always.
+    map_value : the value at the optimum (the same as ``estimate``; kept for old readers).
+    would_pin : when not identified, what extra data would pin it
+        (:func:`~rattlefit.inference.advice.what_would_pin`); empty otherwise.
     """
 
     name: str
     unit: str
-    estimate: float | None
+    estimate: float
     lower: float
     upper: float
     identified: bool
     bound: str | None = None
     map_value: float | None = None
+    would_pin: str = ""
 
     def as_dict(self) -> dict:
         """The fields as a dict (the result JSON's ``parameters`` entries)."""
@@ -208,7 +214,8 @@ def estimate(spec: ParameterSpec, z: float, lo_z: float, hi_z: float) -> Paramet
     ``identified`` needs a two-sided interval no wider than :data:`IDENTIFIED_RATIO` (else
     ``bound="interval"``), and for a parameter with a prior at most half the prior's own 95 %
     width, so that the data, not the prior, pin it down (else ``bound="prior"``, and the
-    interval spans the prior's central 95 % too). Neither gets an estimate. For the free
+    interval spans the prior's central 95 % too). The estimate is the optimum's value in
+    every case. For the free
     parameters (``a``, ``drag_torque``) the lower end of the range stands for zero (dry
     flanks, no drag), and a bound that runs into it reads 0.
     """
@@ -220,15 +227,15 @@ def estimate(spec: ParameterSpec, z: float, lo_z: float, hi_z: float) -> Paramet
     at_top, at_bottom = u_hi > 1 - edge, u_lo < edge
     floor = 0.0 if spec.log_sd is None else spec.lower
 
-    def result(estimate, lo, hi, identified, bound):
-        return ParameterEstimate(spec.name, spec.unit, estimate, lo, hi, identified, bound, value)
+    def result(lo, hi, identified, bound):
+        return ParameterEstimate(spec.name, spec.unit, value, lo, hi, identified, bound, value)
 
     if at_top and at_bottom:
-        return result(None, floor, spec.upper, False, None)
+        return result(floor, spec.upper, False, None)
     if at_top:
-        return result(None, lower, spec.upper, False, "lower")
+        return result(lower, spec.upper, False, "lower")
     if at_bottom:
-        return result(None, floor, upper, False, "upper")
+        return result(floor, upper, False, "upper")
     width = math.log(upper / lower)
     if spec.log_sd is not None and width > Z95 * spec.log_sd:
         # the data barely narrow it, so they cannot move it far from the prior either: an
@@ -237,29 +244,36 @@ def estimate(spec: ParameterSpec, z: float, lo_z: float, hi_z: float) -> Paramet
         reach = math.exp(Z95 * spec.log_sd)
         lower = max(min(lower, spec.center / reach), spec.lower)
         upper = min(max(upper, spec.center * reach), spec.upper)
-        return result(None, lower, upper, False, "prior")
+        return result(lower, upper, False, "prior")
     if width <= math.log(IDENTIFIED_RATIO):
-        return result(value, lower, upper, True, None)
-    return result(None, lower, upper, False, "interval")
+        return result(lower, upper, True, None)
+    return result(lower, upper, False, "interval")
 
 
-def estimates_of(problem: Problem, z, z_lo, z_hi) -> dict[str, ParameterEstimate]:
+def estimates_of(
+    problem: Problem, z, z_lo, z_hi, lubrications: Sequence[str] = ()
+) -> dict[str, ParameterEstimate]:
     """Every parameter's :class:`ParameterEstimate` from the optimum ``z`` and its interval
     ends in z: the film half-lengths, ``drag_torque`` and ``viscosity`` first (the viscosity
-    factor converted to Pa s at the first recording's temperature), then the nuisances."""
+    factor converted to Pa s at the first recording's temperature), then the nuisances; each
+    that is not identified says what would pin it, given the recordings' ``lubrications``."""
     found = {s.name: estimate(s, z[i], z_lo[i], z_hi[i]) for i, s in enumerate(problem.specs)}
     vs = found.pop("viscosity_scale")
     mu0 = float(np.asarray(problem.viscosities)[0])
     found["viscosity"] = ParameterEstimate(
         "viscosity",
         "Pa s",
-        None if vs.estimate is None else vs.estimate * mu0,
+        vs.estimate * mu0,
         vs.lower * mu0,
         vs.upper * mu0,
         vs.identified,
         vs.bound,
         vs.map_value * mu0,
     )
+    found = {
+        k: dataclasses.replace(p, would_pin=what_would_pin(k, list(lubrications), p.identified))
+        for k, p in found.items()
+    }
     first = [*dict.fromkeys(problem.films), "drag_torque", "viscosity"]
     ordered = {k: found[k] for k in first}
     ordered.update({k: v for k, v in found.items() if k not in ordered})

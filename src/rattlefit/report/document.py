@@ -8,10 +8,11 @@ from html import escape
 from pathlib import Path
 
 from ..diagnosis.result import MISSED_Z
+from ..inference.advice import base_name
 from ..io.recording import Recording
 from ..util import atomic_write
 from . import figures
-from .explain import MEANING, base_name, display_unit, estimate_cells, explain, shown, verdict_word
+from .explain import MEANING, display_unit, estimate_cells, explain, shown, verdict_word
 from .inputs import (
     check,
     idata_recordings,

@@ -3,8 +3,7 @@ HTML report's parameter table; and the numbers as the table shows them."""
 
 from __future__ import annotations
 
-import re
-
+from ..inference.advice import base_name, film_lubrication
 from ..inference.result import IDENTIFIED_RATIO
 from .tables import DISPLAY
 
@@ -17,22 +16,6 @@ MEANING = {
     "min_film": "adsorbed film thickness h_min below which the squeeze force saturates",
     "backlash": "backlash on the pitch circle",
 }
-
-
-def base_name(name: str) -> str:
-    """``a[boundary]`` → ``a``, ``backlash[0]`` → ``backlash``."""
-    return re.sub(r"\[.*\]$", "", name)
-
-
-def film_lubrication(name: str, lubrications: list[str]) -> str | None:
-    """The lubrication a film parameter belongs to: ``a[oil_jet]`` → ``oil_jet``, ``a`` → the
-    recordings' one lubrication; None for a parameter that is not a film half-length."""
-    if base_name(name) != "a":
-        return None
-    m = re.fullmatch(r"a\[(.+)\]", name)
-    if m:
-        return m.group(1)
-    return lubrications[0] if len(set(lubrications)) == 1 else None
 
 
 def shown(value: float, unit: str) -> str:
@@ -48,16 +31,18 @@ def display_unit(unit: str) -> str:
 
 def estimate_cells(p: dict) -> tuple[str, str]:
     """``(estimate, 95 % interval)`` as the table shows a parameter entry of the fit JSON
-    (display units, :func:`shown`): a bound reads ``≥ x`` or ``≤ x``."""
+    (display units, :func:`shown`): the estimate always (the optimum; a file written before
+    every parameter had one shows ``—``), a one-sided interval as ``≥ x`` or ``≤ x``."""
     unit = p["unit"]
-    interval = f"[{shown(p['lower'], unit)}, {shown(p['upper'], unit)}]"
-    if p["identified"] and p["estimate"] is not None:
-        return shown(p["estimate"], unit), interval
+    value = p.get("estimate")
+    if value is None:
+        value = p.get("map_value")
+    estimate = "—" if value is None else shown(value, unit)
     if p["bound"] == "lower":
-        return f"≥ {shown(p['lower'], unit)}", interval
+        return estimate, f"≥ {shown(p['lower'], unit)}"
     if p["bound"] == "upper":
-        return f"≤ {shown(p['upper'], unit)}", interval
-    return "—", interval
+        return estimate, f"≤ {shown(p['upper'], unit)}"
+    return estimate, f"[{shown(p['lower'], unit)}, {shown(p['upper'], unit)}]"
 
 
 def verdict_word(p: dict) -> str:
@@ -132,4 +117,6 @@ def explain(name: str, p: dict, lubrications: list[str]) -> str:
             " With a boundary film it trades against a and h_min along μ·a³/h_min², the "
             "group the spectrum pins."
         )
+    if p.get("would_pin") and lub != "boundary":
+        text += f" What would pin it: {p['would_pin']}."
     return text

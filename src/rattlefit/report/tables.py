@@ -19,27 +19,26 @@ DISPLAY = {"m": (1e3, "mm"), "N m": (1.0, "N m"), "Pa s": (1.0, "Pa s"), "1": (1
 def format_table(result: FitResult) -> str:
     """The parameters as a readable table (estimate, 95 % interval, unit, identified)."""
     rows = [("parameter", "estimate", "95 % interval", "unit", "identified")]
+    advice = []
     for name, p in result.parameters.items():
         mult, unit = DISPLAY.get(p.unit, (1.0, p.unit))
+        est = f"{p.estimate * mult:.4g}"
+        ci = f"[{p.lower * mult:.4g}, {p.upper * mult:.4g}]"
         if p.identified:
-            est = f"{p.estimate * mult:.4g}"
-            ci = f"[{p.lower * mult:.4g}, {p.upper * mult:.4g}]"
             ident = "yes"
         elif p.bound == "lower":
-            est, ci, ident = f"≥ {p.lower * mult:.4g}", "(bound)", "no: lower bound only"
+            ci, ident = f"≥ {p.lower * mult:.4g}", "no: lower bound only"
         elif p.bound == "upper":
-            est, ci, ident = f"≤ {p.upper * mult:.4g}", "(bound)", "no: upper bound only"
-        elif p.bound in ("interval", "prior"):
-            est = "—"
-            ci = f"[{p.lower * mult:.4g}, {p.upper * mult:.4g}]"
-            ident = (
-                f"no: interval too wide (×{p.upper / p.lower:.2f} > ×{IDENTIFIED_RATIO})"
-                if p.bound == "interval"
-                else "no: prior-dominated"
-            )
+            ci, ident = f"≤ {p.upper * mult:.4g}", "no: upper bound only"
+        elif p.bound == "interval":
+            ident = f"no: interval too wide (×{p.upper / p.lower:.2f} > ×{IDENTIFIED_RATIO})"
+        elif p.bound == "prior":
+            ident = "no: prior-dominated"
         else:
-            est, ci, ident = "—", f"[{p.lower * mult:.4g}, {p.upper * mult:.4g}]", "no"
+            ident = "no"
         rows.append((name, est, ci, unit, ident))
+        if p.would_pin:
+            advice.append(f"to pin {name}: {p.would_pin}")
     widths = [max(len(r[i]) for r in rows) for i in range(5)]
     lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
@@ -52,6 +51,7 @@ def format_table(result: FitResult) -> str:
     )
     if "threshold" in result.profile:
         lines.append(_profile_line(result.profile))
+    lines += advice
     for k, share in enumerate(result.regime_share):
         if share < 0.5:
             which = "the recording"
