@@ -9,7 +9,12 @@ recording, the effect (or, for dissipation in contact, any of the dissipative ca
 otherwise.
 
     python benchmarks/diagnose_study.py [--sets shared,clean,injected] [--full]
-                                        [--only NAME ...] [--json out.json] [--quiet]
+                                        [--only NAME ...] [--cases-dir DIR]
+                                        [--json out.json] [--quiet]
+
+A full study takes hours: with ``--cases-dir`` each case's row is written there as it ends
+(``<name>.json``) and a case whose row is there is not run again, so an interrupted study
+resumes; the summary covers every row in the directory that the selection holds.
 
 Without ``--full`` only the model-free tests run (seconds per recording): the verdict is what
 they name, or ``none``, and a case counts as clean when its effect has no model-free test
@@ -104,7 +109,7 @@ def run_case(case: dict, full: bool, say) -> dict:
     t0 = time.perf_counter()
     if full:
         diag = diagnose([rec], DiagnoseOptions(), progress=None)
-        verdict, detail = diag.verdict.label, {"sentence": diag.verdict.sentence}
+        verdict, detail = diag.verdict.label, full_detail(diag)
     else:
         verdict, detail = model_free_verdict(rec)
         case = case | {"expected": model_free_expected(case["expected"])}
@@ -113,6 +118,44 @@ def run_case(case: dict, full: bool, say) -> dict:
     mark = "right" if ok else "WRONG"
     say(f"{case['set']:8s} {case['name']:45s} {verdict:28s} {mark} ({wall:.0f} s)")
     return case | {"verdict": verdict, "right": ok, "wall_s": round(wall, 1), "detail": detail}
+
+
+def full_detail(diag) -> dict:
+    """What a full diagnosis of a case leaves for the study: the sentence, the band gap and
+    each candidate's χ² with it, support and time."""
+    chi2, dof, p = diag.gap_chi2
+    return {
+        "sentence": diag.verdict.sentence,
+        "gap_chi2": round(chi2, 2),
+        "dof": dof,
+        "gap_p": p,
+        "effects": [
+            {
+                "name": o.name,
+                "chi2_with": None if o.failure else round(o.chi2_with, 2),
+                "supported": o.supported,
+                "p_after": None if o.failure else o.p_after,
+                "wall_s": round(o.wall_time, 1),
+            }
+            for o in diag.outcomes
+        ],
+    }
+
+
+def run_cases(cases: list[dict], full: bool, cases_dir: Path | None, say) -> list[dict]:
+    """Each case's row (:func:`run_case`); with ``cases_dir``, rows already there are read
+    back instead of run, and each new one is written there as it ends."""
+    rows = []
+    for case in cases:
+        path = None if cases_dir is None else cases_dir / f"{case['name']}.json"
+        if path is not None and path.is_file():
+            rows.append(json.loads(path.read_text()))
+            continue
+        row = run_case(case, full, say)
+        if path is not None:
+            write_json(path, row)
+        rows.append(row)
+    return rows
 
 
 def summary(rows: list[dict]) -> dict:
@@ -138,6 +181,7 @@ def main() -> None:
     ap.add_argument("--sets", default="shared,clean,injected")
     ap.add_argument("--full", action="store_true")
     ap.add_argument("--only", nargs="*")
+    ap.add_argument("--cases-dir", type=Path)
     ap.add_argument("--json")
     ap.add_argument("--quiet", action="store_true")
     args = ap.parse_args()
@@ -147,7 +191,9 @@ def main() -> None:
         cases += shared_cases() if which == "shared" else set_cases(which)
     if args.only:
         cases = [c for c in cases if c["name"] in args.only]
-    rows = [run_case(c, args.full, say) for c in cases]
+    if args.cases_dir is not None:
+        args.cases_dir.mkdir(parents=True, exist_ok=True)
+    rows = run_cases(cases, args.full, args.cases_dir, say)
     result = summary(rows)
     say(json.dumps({k: v for k, v in result.items() if k != "confusion"}, indent=1))
     for c in result["confusion"]:
