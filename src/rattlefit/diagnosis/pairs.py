@@ -13,12 +13,9 @@ be named.
 from __future__ import annotations
 
 import dataclasses
-import math
-
-from scipy import stats
 
 from .result import EffectOutcome
-from .trial import Z95_ONE_SIDED, Trial, judge_effect, refit
+from .trial import Z95_ONE_SIDED, Trial, difference_sd, f_test, judge_effect, refit
 
 #: How many of the next supported candidates the best one is paired with.
 PAIR_PARTNERS = 2
@@ -54,11 +51,9 @@ def beyond_single(trial: Trial, pair: EffectOutcome, single: EffectOutcome, leve
     d = len(trial.fields(pair.name)) - len(trial.fields(single.name))
     dof_with = max(trial.dof - len(trial.fields(pair.name)), 1)
     delta = single.chi2_with - pair.chi2_with
-    f_stat = (delta / d) / max(pair.chi2_with / dof_with, 1e-12)
-    p = float(stats.f.sf(f_stat, d, dof_with)) if delta > 0 else 1.0
-    n = trial.y0.shape[1]
-    var = 4.0 * (max(single.chi2_with, trial.dof) + max(pair.chi2_with, trial.dof)) / (n + 1)
-    clear = bool(p < level and delta > Z95_ONE_SIDED * math.sqrt(var))
+    p = f_test(delta, d, pair.chi2_with, dof_with)
+    noise = Z95_ONE_SIDED * difference_sd(trial, single.chi2_with, pair.chi2_with)
+    clear = bool(p < level and delta > noise)
     return dataclasses.replace(pair, p_beyond=p, beyond_single=clear)
 
 

@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from ..inference.profile import polish_profile, profile_interval, profile_threshold
-from .trial import Trial, chi2s, field_key, refit_steps, residual_rows
+from .trial import Trial, chi2s, difference_sd, field_key, refit_steps, residual_rows
 
 #: Where the size is profiled: decades off its fitted value (clipped to its range); close
 #: in, since a size the band spectrum pins can be pinned to a few per cent.
@@ -61,7 +61,7 @@ def size_interval(
     best = float(np.min(chi2))
     dof = max(trial.dof - len(trial.fields(name)), 1)
     scale = max(1.0, best / dof)  # the misfit left, per degree of freedom
-    noise_sd = math.sqrt(8.0 * max(best, dof) / (trial.y0.shape[1] + 1)) / scale
+    noise_sd = difference_sd(trial, best, best, dof) / scale
     # the square root of the rise is linear in the size near a quadratic minimum, so the
     # interpolated crossing is exact there (a linear rise would understate the width)
     root = np.sqrt(np.maximum(chi2 - best, 0.0) / scale)

@@ -134,6 +134,23 @@ def final_chi2(trial: Trial, z) -> tuple[float, np.ndarray]:
     return float(np.sum(whitened_rows(trial, mean) ** 2)), mean
 
 
+def difference_sd(trial: Trial, chi2_a: float, chi2_b: float, dof: int | None = None) -> float:
+    """Monte Carlo standard deviation of the difference of two χ²s on ``dof`` degrees of
+    freedom (default ``trial.dof``), each from the ``trial.y0`` fresh realisations (cf. the
+    profile threshold)."""
+    n, dof = trial.y0.shape[1], trial.dof if dof is None else dof
+    return math.sqrt(4.0 * max(chi2_a, dof) / (n + 1) + 4.0 * max(chi2_b, dof) / (n + 1))
+
+
+def f_test(delta: float, d: int, chi2_with: float, dof_with: int) -> float:
+    """p of an F-test of a χ² drop ``delta`` from ``d`` extra fields against the misfit
+    ``chi2_with`` left on ``dof_with`` degrees of freedom (1 when nothing dropped)."""
+    if delta <= 0:
+        return 1.0
+    f_stat = (delta / d) / max(chi2_with / dof_with, 1e-12)
+    return float(stats.f.sf(f_stat, d, dof_with))
+
+
 def judge_effect(
     trial: Trial, name: str, chi2_without: float, z_fit, level: float
 ) -> EffectOutcome:
@@ -145,13 +162,10 @@ def judge_effect(
     if not np.isfinite(chi2_with):
         return failed_outcome(trial, name, chi2_without, z_fit)
     delta = chi2_without - chi2_with
-    # Monte Carlo noise of each χ² from n realisations (cf. the profile threshold)
-    n, dof = trial.y0.shape[1], trial.dof
-    var = 4.0 * max(chi2_without, dof) / (n + 1) + 4.0 * max(chi2_with, dof) / (n + 1)
-    threshold = Z95_ONE_SIDED * math.sqrt(var)
+    dof = trial.dof
+    threshold = Z95_ONE_SIDED * difference_sd(trial, chi2_without, chi2_with)
     dof_with = max(dof - d, 1)
-    f_stat = (delta / d) / max(chi2_with / dof_with, 1e-12)
-    p_value = float(stats.f.sf(f_stat, d, dof_with)) if delta > 0 else 1.0
+    p_value = f_test(delta, d, chi2_with, dof_with)
     return EffectOutcome(
         name=name,
         values=effect_values(trial, name, z_fit),

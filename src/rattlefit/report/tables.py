@@ -137,6 +137,16 @@ def _si(value: float, unit: str) -> str:
     return f"{value * mult:.3g} {shown}".rstrip()
 
 
+def _size_cell(o, key: str) -> str:
+    """One fitted field of outcome ``o`` with its unit, and its interval where it has one."""
+    unit = o.units[key]
+    text = f"{key} {_si(o.values[key], unit)}"
+    if key in o.intervals:
+        lo, hi = o.intervals[key]
+        text += f" [{_si(lo, unit)} – {_si(hi, unit)}]"
+    return text
+
+
 def _level(diag: Diagnosis) -> float:
     return diag.findings[0].level if diag.findings else diag.significance
 
@@ -179,15 +189,7 @@ def format_diagnosis(diag: Diagnosis) -> str:
         ("effect", "χ² without → with", "gap closed", "p", "p after", "supported", "fitted size")
     ]
     for o in diag.outcomes:
-        size = ", ".join(
-            f"{k} {_si(v, o.units[k])}"
-            + (
-                f" [{_si(o.intervals[k][0], o.units[k])} – {_si(o.intervals[k][1], o.units[k])}]"
-                if k in o.intervals
-                else ""
-            )
-            for k, v in o.values.items()
-        )
+        size = ", ".join(_size_cell(o, k) for k in o.values)
         if o.failure:
             rows.append((o.name, f"{o.chi2_without:.1f} → failed", "—", "—", "—", "no", size))
             continue
