@@ -5,7 +5,9 @@ The recordings are synthetic (rattlefit's simulator with an effect of
 the paper's model without it.
 """
 
+import dataclasses
 import functools
+import importlib
 import json
 
 import numpy as np
@@ -20,11 +22,13 @@ from rattlefit.diagnosis.result import Diagnosis, EffectOutcome, baseline_warnin
 from rattlefit.diagnosis.screening import (
     FREE_FACTORS,
     SCREEN_DECADES,
+    distinct_rows,
     free_alternatives,
     screen_points,
 )
 from rattlefit.diagnosis.trial import Trial, candidate_problem, effect_specs, judge_effect
 from rattlefit.errors import RattlefitError
+from rattlefit.inference.parameters import Z_END
 from rattlefit.inference.problem import build_problem
 from rattlefit.io.recording import OperatingPoint, write_recording
 from rattlefit.physics import effects as fx
@@ -154,6 +158,26 @@ def test_screen_points_try_each_field_alone_and_together_with_less_film_and_drag
     np.testing.assert_allclose(drags, [drag0 * f for _, f in FREE_FACTORS], rtol=1e-4)
     rest = pts[:, 2:p0]  # the nuisances are never moved
     np.testing.assert_array_equal(rest, np.broadcast_to(z_off[2:p0], rest.shape))
+
+
+def test_a_shape_field_is_screened_only_with_the_size_and_repeated_starts_once():
+    rec, _ = _dry_pair2([])
+    base, _ = build_problem([rec], FitOptions.quick(), np.random.default_rng(BUILD_SEED))
+    problem, candidates = candidate_problem(base, ("shaft_inertia",))
+    ratio, freq = candidates["shaft_inertia"]
+    z_off = np.concatenate(
+        [np.zeros(len(base.specs)), np.full(len(problem.specs) - len(base.specs), -8.0)]
+    )
+    pts = screen_points(z_off, [ratio, freq], problem, shape=[freq])
+    assert pts.shape[0] == len(FREE_FACTORS) * 2 * len(SCREEN_DECADES)  # ratio alone, both
+    lowest = float(problem.specs[ratio].value(pts[:, ratio]).min())
+    assert lowest == pytest.approx(10.0 * 10.0 ** -max(SCREEN_DECADES), rel=1e-3)  # never absent
+    dry = distinct_rows(np.where(np.arange(pts.shape[1]) == 0, -Z_END, pts))  # films at the end
+    drags = {f for _, f in FREE_FACTORS}
+    assert dry.shape[0] == len(drags) * 2 * len(SCREEN_DECADES)  # dry: only the drag differs
+    np.testing.assert_array_equal(
+        distinct_rows(np.array([[1, 2], [0, 0], [1, 2], [3, 3]])), [[1, 2], [0, 0], [3, 3]]
+    )  # first appearances, in order
 
 
 def test_baseline_refit_starts_from_the_identification_and_the_free_alternatives():
@@ -363,3 +387,28 @@ def test_the_size_interval_is_where_the_profile_rises_by_the_threshold(monkeypat
         half = np.sqrt(profile_threshold(noise) * scale / k)  # decades
         assert np.log10(hi / 0.05) == pytest.approx(half, rel=1e-9)
         assert np.log10(0.05 / lo) == pytest.approx(half, rel=1e-9)
+
+
+@pytest.mark.parametrize("validation, kept", [((50.0, 20.0), 1), ((20.0, 50.0), 0)])
+def test_the_refit_without_effects_kept_is_the_one_better_on_the_validation_set(
+    monkeypatch, validation, kept
+):
+    # the two re-fits (a and T_b; also the nuisances) are told apart by what they hold; the
+    # one with the lower χ² on the validation realisations is kept, whichever it is
+    diagnose_module = importlib.import_module("rattlefit.diagnosis.diagnose")
+    trial = Trial(None, None, None, None, 28, 3, [2, 3], {"runout": [5, 6]}, dry=[0])
+    trial = dataclasses.replace(trial, validation=np.zeros((1, 2)))
+    helds = []
+
+    def fake_refit(trial_, z, held, *, iterations=None):
+        helds.append((held, iterations))
+        return np.full(7, float(len(helds)))
+
+    monkeypatch.setattr(diagnose_module, "free_alternatives", lambda z, p: np.zeros((3, 7)))
+    monkeypatch.setattr(diagnose_module, "costs", lambda t, zs: np.arange(len(zs), 0, -1.0))
+    monkeypatch.setattr(diagnose_module, "refit", fake_refit)
+    monkeypatch.setattr(diagnose_module, "chi2s", lambda t, zs, y0: np.array(validation))
+    monkeypatch.setattr(diagnose_module, "residual_rows", lambda t, zs: np.ones((1, 4)))
+    z_base, _, refit_cost = diagnose_module.refit_without_effects(trial, np.zeros(7), print)
+    assert helds == [([0, 2, 3, 5, 6], None), ([0, 5, 6], trial.base_iterations)]
+    assert z_base[0] == kept + 1 and refit_cost == 4.0

@@ -7,16 +7,18 @@ starts from an identification (:func:`~rattlefit.inference.identify.identify`) a
 
 1. **locates the gap**: each band's standardised residual ``(measured − fitted)/σ`` at the
    optimum, and the bands where it exceeds :data:`~rattlefit.diagnosis.result.MISSED_Z`;
-2. **re-fits the model without effects** over ``a`` and ``drag_torque`` from the
-   alternatives every effect's screening starts from
-   (:data:`~rattlefit.diagnosis.screening.FREE_FACTORS`), so that an effect is not credited
-   with what that re-fit alone gains; when the re-fit lowers the identification's cost by
-   more than half, or the identification stopped at its step limit, the diagnosis warns
-   (:func:`~rattlefit.diagnosis.result.baseline_warnings`);
+2. **re-fits the model without effects** over ``a``, ``drag_torque`` and the nuisances
+   (with their priors) from the alternatives of ``a`` and ``drag_torque`` every effect's
+   screening starts from (:data:`~rattlefit.diagnosis.screening.FREE_FACTORS`), so that an
+   effect is not credited with what that re-fit alone gains, nor with what a plausible
+   shift of the mesh stiffness, h_min or the viscosity explains; when the re-fit lowers
+   the identification's cost by more than half, or the identification stopped at its step
+   limit, the diagnosis warns (:func:`~rattlefit.diagnosis.result.baseline_warnings`);
 3. **tries each effect** of :mod:`rattlefit.physics.effects` on its own: added to the model
    at its absent end, its fields screened over their ranges
    (:func:`~rattlefit.diagnosis.screening.screen`), then fitted together with ``a``
-   and ``drag_torque`` (damped Gauss–Newton on finite differences; the nuisances stay put);
+   and ``drag_torque`` (damped Gauss–Newton on finite differences; the nuisances stay at
+   the re-fit's values);
 4. **measures how far the gap shrinks**, out of sample: the χ² of the data rows (band
    correlations included, the identification's noise model fixed) without the effect and
    with it, both from the same :attr:`DiagnoseOptions.n_final` fresh realisations (common
@@ -64,11 +66,12 @@ from ..util import stamped
 from .evidence import ENCODER_VISIBLE, findings
 from .pairs import pair_candidates, pair_name, try_pair
 from .result import Diagnosis, EffectOutcome, baseline_warnings, finding_phrase
-from .screening import FREE_FACTORS, free_alternatives, screen
+from .screening import distinct_rows, free_alternatives, screen
 from .size import size_intervals
 from .trial import (
     Trial,
     candidate_problem,
+    chi2s,
     costs,
     dry_films,
     final_chi2,
@@ -88,6 +91,8 @@ class DiagnoseOptions:
         diagnosis too); by default :meth:`FitOptions.optimum_only`, since the diagnosis uses
         the optimum and its noise model, not the intervals.
     iterations : Gauss–Newton iterations per effect.
+    base_iterations : Gauss–Newton iterations of the re-fit without effects, which moves the
+        nuisances (with their priors) besides ``a`` and ``drag_torque``.
     n_final : realisations behind each final χ² (default: the fit's covariance count).
     significance : family-wise level: an effect counts as supported when its F-test p is
         below ``significance`` over the number of effects fitted (Bonferroni); the
@@ -100,6 +105,7 @@ class DiagnoseOptions:
     effects: tuple[str, ...] = tuple(EFFECTS)
     fit: FitOptions = dataclasses.field(default_factory=FitOptions.optimum_only)
     iterations: int = 3
+    base_iterations: int = 6
     n_final: int | None = None
     significance: float = 0.01
     every_effect: bool = False
@@ -107,23 +113,40 @@ class DiagnoseOptions:
     def __post_init__(self):
         for name in self.effects:
             effect_class(name)  # raises with the list of known effects
-        if self.iterations < 0:
-            raise RattlefitError("DiagnoseOptions.iterations must be ≥ 0")
+        if self.iterations < 0 or self.base_iterations < 0:
+            raise RattlefitError("DiagnoseOptions.iterations and base_iterations must be ≥ 0")
 
 
 def refit_without_effects(trial: Trial, z, say) -> tuple[np.ndarray, float, float]:
-    """The model without effects re-fitted over ``a`` and ``drag_torque`` from the
-    screening's alternatives of them at ``z`` (every effect absent): the re-fitted point,
-    the cost at ``z`` and the re-fit's."""
-    say(
-        f"re-fitting a and T_b without effects ({len(FREE_FACTORS)} starts, "
-        f"{trial.iterations} iterations; one program holds every candidate, compiling first) …"
+    """The model without effects re-fitted from the best of the screening's alternatives of
+    ``a`` and ``drag_torque`` at ``z`` (every effect absent), twice: over ``a`` and
+    ``drag_torque`` alone, and over them and the nuisances (``trial.base_iterations``). The
+    one with the lower χ² on the validation realisations is kept, since a re-fit with more
+    coordinates can chase the fit's own few realisations. Returns the kept point, the cost
+    at ``z`` and the kept point's cost."""
+    starts = distinct_rows(
+        trial.dried(free_alternatives(np.asarray(z, dtype=float), trial.problem))
     )
-    starts = trial.dried(free_alternatives(np.asarray(z, dtype=float), trial.problem))
+    say(
+        f"re-fitting the model without effects ({len(starts)} starts; a and T_b, then also "
+        "the nuisances; one program holds every candidate, compiling first) …"
+    )
     cost = costs(trial, starts)  # row 0: z
-    z_base = refit(trial, starts[int(np.argmin(cost))], trial.held())
-    refit_cost = float(np.sum(residual_rows(trial, z_base[None]) ** 2))
-    return z_base, float(cost[0]), refit_cost
+    start = starts[int(np.argmin(cost))]
+    refits = np.stack(
+        [
+            refit(trial, start, trial.held()),
+            refit(trial, start, trial.held(nuisances=False), iterations=trial.base_iterations),
+        ]
+    )
+    validation = chi2s(trial, refits, trial.validation)
+    k = int(np.argmin(np.where(np.isfinite(validation), validation, np.inf)))
+    say(
+        f"  validation χ² {validation[0]:.1f} (a, T_b) and {validation[1]:.1f} (and the "
+        f"nuisances): keeping the {'first' if k == 0 else 'second'}"
+    )
+    refit_cost = float(np.sum(residual_rows(trial, refits[k][None]) ** 2))
+    return refits[k], float(cost[0]), refit_cost
 
 
 def fit_effect(trial: Trial, name: str, z_base, say) -> np.ndarray:
@@ -169,15 +192,18 @@ def trial_of(
     names: Sequence[str] | None = None,
 ) -> Trial:
     """The :class:`Trial` of ``baseline``: its problem with the candidates ``names`` (default:
-    every effect of ``options``), noise model and fresh release states (seeded from the fit's
-    seed + 1) for the final comparison."""
+    every effect of ``options``), noise model, fresh release states for the final comparison
+    (seeded from the fit's seed + 1) and as many validation states (seed + 2)."""
     base = baseline.problem_for(recordings)
     problem, candidates = candidate_problem(base, options.effects if names is None else names)
     fit_options = baseline.options
     n_final = options.n_final or fit_options.n_covariance_realisations
     y0 = release_states(base, baseline.z, n_final, np.random.default_rng(fit_options.seed + 1))
+    validation = release_states(
+        base, baseline.z, n_final, np.random.default_rng(fit_options.seed + 2)
+    )
     dry = dry_films(base, recordings)
-    nuisances = [i for i, sp in enumerate(base.specs) if sp.log_sd is not None] + dry
+    nuisances = [i for i, sp in enumerate(base.specs) if sp.log_sd is not None]
     return Trial(
         problem,
         baseline.noise,
@@ -188,6 +214,8 @@ def trial_of(
         nuisances,
         candidates,
         dry,
+        options.base_iterations,
+        validation,
     )
 
 

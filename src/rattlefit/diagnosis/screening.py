@@ -14,6 +14,7 @@ import numpy as np
 
 from ..inference.parameters import Z_END
 from ..inference.problem import Problem
+from ..physics.effects import effect_class
 from .trial import Trial, costs
 
 #: Where each effect field is screened before the fit: decades below the top of its range
@@ -48,15 +49,25 @@ FREE_FACTORS = (
 )
 
 
-def screen_points(z_off: np.ndarray, indices: Sequence[int], problem: Problem) -> np.ndarray:
+def screen_points(
+    z_off: np.ndarray,
+    indices: Sequence[int],
+    problem: Problem,
+    *,
+    shape: Sequence[int] = (),
+) -> np.ndarray:
     """Starting points: each field of an effect (its coordinates ``indices`` in ``problem``)
     alone at :data:`SCREEN_DECADES` below the top of its range (the others absent), and,
     with several fields, all of them together; each with the film half-length and the drag
-    torque at :data:`FREE_FACTORS` of their values at ``z_off``."""
+    torque at :data:`FREE_FACTORS` of their values at ``z_off``. The fields at ``shape`` (the
+    effect's ``shape_fields``, which do not size it) are screened only together with the
+    others: alone, the effect is absent."""
     specs = [problem.specs[i] for i in indices]
     grid = [np.array([s.z_of(s.upper * 10.0**-k) for s in specs]) for k in SCREEN_DECADES]
     fields = []
     for j, i in enumerate(indices):
+        if i in shape:
+            continue
         for g in grid:
             z = z_off.copy()
             z[i] = g[j]
@@ -110,12 +121,29 @@ def free_alternatives(z: np.ndarray, problem) -> np.ndarray:
     return np.stack(rows)
 
 
+def distinct_rows(points: np.ndarray) -> np.ndarray:
+    """``points`` (K, P) without repeated rows, in the order of their first appearance (a
+    dry recording's film alternatives, or fields clipped to the ends of their ranges,
+    coincide)."""
+    _, first = np.unique(points, axis=0, return_index=True)
+    return points[np.sort(first)]
+
+
+def shape_indices(trial: Trial, name: str) -> list[int]:
+    """The coordinates of effect ``name``'s ``shape_fields`` in ``trial.problem``."""
+    shape = {f"{name}.{field}" for field in effect_class(name).shape_fields}
+    return [i for i in trial.candidates[name] if trial.problem.specs[i].name in shape]
+
+
 def screen(trial: Trial, name: str, z_base) -> tuple[np.ndarray, float, float]:
     """The best start for effect ``name`` from ``z_base`` (every effect absent), by
-    successive halving: every screening point (:func:`screen_points`) costed on the first
-    :data:`SCREEN_REALISATIONS` realisations, the :data:`SCREEN_FINALISTS` cheapest on all of
-    them. Returns the start, the cost at ``z_base`` and the start's (both on all)."""
-    starts = trial.dried(screen_points(z_base, trial.candidates[name], trial.problem))
+    successive halving: every distinct screening point (:func:`screen_points`) costed on the
+    first :data:`SCREEN_REALISATIONS` realisations, the :data:`SCREEN_FINALISTS` cheapest on
+    all of them. Returns the start, the cost at ``z_base`` and the start's (both on all)."""
+    points = screen_points(
+        z_base, trial.candidates[name], trial.problem, shape=shape_indices(trial, name)
+    )
+    starts = distinct_rows(trial.dried(points))
     m = min(SCREEN_REALISATIONS, trial.problem.y0.shape[1])
     rough = costs(trial, starts, realisations=np.arange(m))
     finalists = starts[np.argsort(rough, kind="stable")[:SCREEN_FINALISTS]]

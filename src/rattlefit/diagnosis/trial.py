@@ -41,12 +41,18 @@ class Trial:
     noise, data, dof : the identification's noise model, measured features (R, B) and
         degrees of freedom.
     y0 : fresh release states of the final comparison.
-    iterations : Gauss–Newton iterations per fit.
-    nuisances : coordinates never re-fitted: the parameters with a prior, and the film
-        half-length of dry recordings, held at its dry end (dry flanks have no oil film, and
-        a film fitted to them would absorb dissipation that is in the contact).
+    validation : release states (as many, from another seed) that choose between the
+        re-fits of the model without effects; never used to judge.
+    iterations : Gauss–Newton iterations per effect's fit.
+    nuisances : the coordinates with a prior (viscosity and stiffness scales, h_min, the
+        backlashes). One re-fit of the model without effects moves them, with their prior
+        rows; an effect's fit holds them at the chosen re-fit's values, so that an effect is
+        credited only with what a plausible shift of the nuisances cannot explain.
     candidates : each effect's coordinates in ``problem``.
-    dry : the film coordinates of dry recordings (part of ``nuisances``).
+    dry : the film coordinates of dry recordings, never re-fitted: held at their dry end
+        (dry flanks have no oil film, and a film fitted to them would absorb dissipation
+        that is in the contact).
+    base_iterations : Gauss–Newton iterations of the re-fit without effects.
     """
 
     problem: Problem
@@ -58,6 +64,8 @@ class Trial:
     nuisances: list[int]
     candidates: dict[str, list[int]]
     dry: list[int] = dataclasses.field(default_factory=list)
+    base_iterations: int = 6
+    validation: np.ndarray | None = None
 
     def dried(self, zs: np.ndarray) -> np.ndarray:
         """``zs`` (…, P) with the dry recordings' film half-lengths at their dry end."""
@@ -69,12 +77,13 @@ class Trial:
         """Coordinates of effect ``name``, or of every effect of ``"<effect>+<effect>"``."""
         return [i for n in name.split("+") for i in self.candidates[n]]
 
-    def held(self, name: str | None = None) -> list[int]:
+    def held(self, name: str | None = None, *, nuisances: bool = True) -> list[int]:
         """Coordinates held fixed in a fit of effect ``name`` (None: of no effect; ``"a+b"``:
-        of two together): the nuisances and every other effect's fields."""
+        of two together): the dry films, the nuisances (unless ``nuisances`` is False) and
+        every other effect's fields."""
         fitted = set(self.fields(name)) if name else set()
         others = [i for idx in self.candidates.values() for i in idx if i not in fitted]
-        return sorted(self.nuisances + others)
+        return sorted(set(self.dry + (self.nuisances if nuisances else []) + others))
 
 
 def whitened_rows(trial: Trial, mean: np.ndarray) -> np.ndarray:
@@ -108,24 +117,29 @@ def refit_steps(trial: Trial, zs) -> np.ndarray:
     return np.stack([np.minimum(trial.problem.fd_steps(np.asarray(z)), 1.0) for z in zs])
 
 
-def refit(trial: Trial, z, held: list[int]) -> np.ndarray:
-    """``z`` after ``trial.iterations`` of damped Gauss–Newton on the coordinates not in
-    ``held``."""
-    if not trial.iterations:
+def refit(trial: Trial, z, held: list[int], *, iterations: int | None = None) -> np.ndarray:
+    """``z`` after ``iterations`` (default ``trial.iterations``) of damped Gauss–Newton on
+    the coordinates not in ``held``."""
+    iterations = trial.iterations if iterations is None else iterations
+    if not iterations:
         return z
     rows = functools.partial(residual_rows, trial)
     steps = refit_steps(trial, z[None])
-    return polish_profile(rows, z[None], [held], steps, iterations=trial.iterations)[0]
+    return polish_profile(rows, z[None], [held], steps, iterations=iterations)[0]
 
 
-def fresh_means(trial: Trial, zs) -> np.ndarray:
-    """Mean features (K, R, B) at the points ``zs`` on the fresh release states."""
-    return np.asarray(trial.problem.mean_of(evaluate(trial.problem, zs, trial.y0)))
+def fresh_means(trial: Trial, zs, y0=None) -> np.ndarray:
+    """Mean features (K, R, B) at the points ``zs`` on the fresh release states (or on
+    ``y0``)."""
+    y0 = trial.y0 if y0 is None else y0
+    return np.asarray(trial.problem.mean_of(evaluate(trial.problem, zs, y0)))
 
 
-def chi2s(trial: Trial, zs) -> np.ndarray:
-    """χ² of the data rows at each point of ``zs`` on the fresh release states (K,)."""
-    return np.array([np.sum(whitened_rows(trial, m) ** 2) for m in fresh_means(trial, zs)])
+def chi2s(trial: Trial, zs, y0=None) -> np.ndarray:
+    """χ² of the data rows at each point of ``zs`` on the fresh release states (or on
+    ``y0``): (K,)."""
+    means = fresh_means(trial, zs, y0)
+    return np.array([np.sum(whitened_rows(trial, m) ** 2) for m in means])
 
 
 def final_chi2(trial: Trial, z) -> tuple[float, np.ndarray]:
@@ -232,9 +246,7 @@ def moves(trial: Trial, z_base, z_fit) -> dict[str, tuple[float, float]]:
     effect_coords = {i for idx in trial.candidates.values() for i in idx}
     out = {}
     for i, spec in enumerate(trial.problem.specs):
-        if i in effect_coords or spec.name.startswith("backlash"):
-            continue
-        if i in trial.nuisances:
+        if i in effect_coords or i in trial.nuisances or i in trial.dry:
             continue
         out[spec.name] = (float(spec.value(z_base[i])), float(spec.value(z_fit[i])))
     return out

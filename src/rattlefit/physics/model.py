@@ -260,13 +260,16 @@ class Effect(eqx.Module):
     * :meth:`coupled` — given its state and the net force on the driven gear from everything
       else, the force it adds on the pitch circle and its state's time derivative.
 
-    Two class attributes let :mod:`rattlefit.diagnosis.diagnose` fit the effect: ``name`` (its short
-    name) and ``ranges`` (fitted field → (unit, lower, upper)); the lower end of each range
-    stands for the effect being absent. :mod:`rattlefit.physics.effects` holds the catalogue.
+    Three class attributes let :mod:`rattlefit.diagnosis.diagnose` fit the effect: ``name``
+    (its short name), ``ranges`` (fitted field → (unit, lower, upper)) and ``shape_fields``
+    (the fields that shape the effect without sizing it, e.g. a frequency). The lower ends
+    of the other fields' ranges stand for the effect being absent, whatever the shape fields
+    are. :mod:`rattlefit.physics.effects` holds the catalogue.
     """
 
     name: ClassVar[str] = "effect"
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {}
+    shape_fields: ClassVar[tuple[str, ...]] = ()
     states: ClassVar[int] = 0
     state_units: ClassVar[tuple[str, ...]] = ()
 
