@@ -407,8 +407,30 @@ def test_the_refit_without_effects_kept_is_the_one_better_on_the_validation_set(
     monkeypatch.setattr(diagnose_module, "free_alternatives", lambda z, p: np.zeros((3, 7)))
     monkeypatch.setattr(diagnose_module, "costs", lambda t, zs: np.arange(len(zs), 0, -1.0))
     monkeypatch.setattr(diagnose_module, "refit", fake_refit)
+    monkeypatch.setattr(diagnose_module, "refit_until_settled", fake_refit)
     monkeypatch.setattr(diagnose_module, "chi2s", lambda t, zs, y0: np.array(validation))
     monkeypatch.setattr(diagnose_module, "residual_rows", lambda t, zs: np.ones((1, 4)))
     z_base, _, refit_cost = diagnose_module.refit_without_effects(trial, np.zeros(7), print)
     assert helds == [([0, 2, 3, 5, 6], None), ([0, 5, 6], trial.base_iterations)]
     assert z_base[0] == kept + 1 and refit_cost == 4.0
+
+
+def test_the_refit_without_effects_stops_once_settled(monkeypatch):
+    # the cost falls 100 → 60 → 50 → 49.5 → …: the third pair of iterations gains 1 %
+    from rattlefit.diagnosis import trial as trial_module
+
+    path = iter([100.0, 60.0, 50.0, 49.5, 49.4, 49.3])
+    calls = []
+    monkeypatch.setattr(trial_module, "costs", lambda t, zs: np.array([next(path)]))
+
+    def two_more(t, z, held, *, iterations):
+        calls.append(iterations)
+        return z + 1
+
+    monkeypatch.setattr(trial_module, "refit", two_more)
+    z = trial_module.refit_until_settled(None, np.zeros(2), [], iterations=12)
+    assert calls == [2, 2, 2] and z[0] == 3.0
+    path = iter([100.0, 50.0, 25.0])
+    calls.clear()
+    trial_module.refit_until_settled(None, np.zeros(2), [], iterations=4)
+    assert calls == [2, 2]  # the cap

@@ -78,6 +78,7 @@ from .trial import (
     judge_effect,
     moves,
     refit,
+    refit_until_settled,
     residual_rows,
 )
 
@@ -91,8 +92,9 @@ class DiagnoseOptions:
         diagnosis too); by default :meth:`FitOptions.optimum_only`, since the diagnosis uses
         the optimum and its noise model, not the intervals.
     iterations : Gauss–Newton iterations per effect.
-    base_iterations : Gauss–Newton iterations of the re-fit without effects, which moves the
-        nuisances (with their priors) besides ``a`` and ``drag_torque``.
+    base_iterations : most Gauss–Newton iterations of the re-fit without effects that moves
+        the nuisances (with their priors) besides ``a`` and ``drag_torque``; it stops
+        earlier once settled (:func:`~rattlefit.diagnosis.trial.refit_until_settled`).
     n_final : realisations behind each final χ² (default: the fit's covariance count).
     significance : family-wise level: an effect counts as supported when its F-test p is
         below ``significance`` over the number of effects fitted (Bonferroni); the
@@ -105,7 +107,7 @@ class DiagnoseOptions:
     effects: tuple[str, ...] = tuple(EFFECTS)
     fit: FitOptions = dataclasses.field(default_factory=FitOptions.optimum_only)
     iterations: int = 3
-    base_iterations: int = 6
+    base_iterations: int = 12
     n_final: int | None = None
     significance: float = 0.01
     every_effect: bool = False
@@ -120,7 +122,8 @@ class DiagnoseOptions:
 def refit_without_effects(trial: Trial, z, say) -> tuple[np.ndarray, float, float]:
     """The model without effects re-fitted from the best of the screening's alternatives of
     ``a`` and ``drag_torque`` at ``z`` (every effect absent), twice: over ``a`` and
-    ``drag_torque`` alone, and over them and the nuisances (``trial.base_iterations``). The
+    ``drag_torque`` alone, and over them and the nuisances until settled
+    (:func:`~rattlefit.diagnosis.trial.refit_until_settled`). The
     one with the lower χ² on the validation realisations is kept, since a re-fit with more
     coordinates can chase the fit's own few realisations. Returns the kept point, the cost
     at ``z`` and the kept point's cost."""
@@ -136,7 +139,9 @@ def refit_without_effects(trial: Trial, z, say) -> tuple[np.ndarray, float, floa
     refits = np.stack(
         [
             refit(trial, start, trial.held()),
-            refit(trial, start, trial.held(nuisances=False), iterations=trial.base_iterations),
+            refit_until_settled(
+                trial, start, trial.held(nuisances=False), iterations=trial.base_iterations
+            ),
         ]
     )
     validation = chi2s(trial, refits, trial.validation)

@@ -29,6 +29,9 @@ from .result import EffectOutcome, gap_closed
 
 #: One-sided 95 % quantile of the standard normal (the χ² drop's Monte Carlo allowance).
 Z95_ONE_SIDED = 1.645
+#: The re-fit without effects stops once two iterations lower its cost by less than this
+#: share (:func:`refit_until_settled`).
+BASE_TOLERANCE = 0.02
 
 
 @dataclasses.dataclass(frozen=True)
@@ -52,7 +55,8 @@ class Trial:
     dry : the film coordinates of dry recordings, never re-fitted: held at their dry end
         (dry flanks have no oil film, and a film fitted to them would absorb dissipation
         that is in the contact).
-    base_iterations : Gauss–Newton iterations of the re-fit without effects.
+    base_iterations : most Gauss–Newton iterations of the re-fit without effects over the
+        nuisances (:func:`refit_until_settled`).
     """
 
     problem: Problem
@@ -64,7 +68,7 @@ class Trial:
     nuisances: list[int]
     candidates: dict[str, list[int]]
     dry: list[int] = dataclasses.field(default_factory=list)
-    base_iterations: int = 6
+    base_iterations: int = 12
     validation: np.ndarray | None = None
 
     def dried(self, zs: np.ndarray) -> np.ndarray:
@@ -126,6 +130,23 @@ def refit(trial: Trial, z, held: list[int], *, iterations: int | None = None) ->
     rows = functools.partial(residual_rows, trial)
     steps = refit_steps(trial, z[None])
     return polish_profile(rows, z[None], [held], steps, iterations=iterations)[0]
+
+
+def refit_until_settled(
+    trial: Trial, z, held: list[int], *, iterations: int, tolerance: float = BASE_TOLERANCE
+) -> np.ndarray:
+    """``z`` re-fitted on the coordinates not in ``held`` (:func:`refit`), two Gauss–Newton
+    iterations at a time, until the fit's cost drops by less than the share ``tolerance``
+    over two, or after ``iterations`` in all."""
+    cost = float(costs(trial, np.asarray(z)[None])[0])
+    for _ in range(0, iterations, 2):
+        z = refit(trial, z, held, iterations=2)
+        new = float(costs(trial, z[None])[0])
+        settled = new > (1.0 - tolerance) * cost
+        cost = new
+        if settled:
+            break
+    return z
 
 
 def fresh_means(trial: Trial, zs, y0=None) -> np.ndarray:
