@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 from collections import Counter
 from pathlib import Path
@@ -37,7 +38,8 @@ from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
 from rattlefit.diagnosis.evidence import POINTS_TO, findings
 from studies import write_json
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "recordings"
+REPO = Path(__file__).resolve().parents[1]
+SHARED = REPO.parent / "shared" / "recordings"
 #: The dissipation-in-contact class: any of these names dissipation in contact rightly.
 DISSIPATION = ("flank_friction", "mesh_damping", "pitch_point_friction")
 CLEAN = ("none", "unexplained")
@@ -117,7 +119,9 @@ def run_case(case: dict, full: bool, say) -> dict:
     ok = right(verdict, case["expected"])
     mark = "right" if ok else "WRONG"
     say(f"{case['set']:8s} {case['name']:45s} {verdict:28s} {mark} ({wall:.0f} s)")
-    return case | {"verdict": verdict, "right": ok, "wall_s": round(wall, 1), "detail": detail}
+    where = os.path.relpath(case["path"], REPO)  # a row reads the same on every checkout
+    row = {"verdict": verdict, "right": ok, "wall_s": round(wall, 1), "detail": detail}
+    return case | {"path": where} | row
 
 
 def full_detail(diag) -> dict:
