@@ -275,6 +275,9 @@ def test_shrunk_correlation_is_positive_definite_and_consistent():
     # independent bands shrink towards zero correlation
     c0 = shrunk_correlation(rng.normal(size=(24, 30)))
     assert np.abs(c0[~np.eye(30, dtype=bool)]).mean() < INDEPENDENT_CORRELATION
+    # two realisations (a rare regime's) are perfectly correlated in every pair of bands:
+    # they say nothing about the correlation, and the matrix must stay positive definite
+    np.linalg.cholesky(shrunk_correlation(x[:2]))
 
 
 def test_features_do_not_depend_on_how_the_rows_are_chunked(monkeypatch, mild_recording):

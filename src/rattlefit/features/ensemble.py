@@ -193,9 +193,13 @@ def shrunk_correlation(samples: np.ndarray) -> np.ndarray:
 
     Schäfer & Strimmer (2005), target D: the optimal shrinkage intensity
     λ = Σ_{i≠j} Var(r_ij) / Σ_{i≠j} r_ij², clipped to [0, 1]. With fewer samples than bands
-    the sample correlation is singular; the shrunk one is positive definite.
+    the sample correlation is singular; the shrunk one is positive definite. From fewer than
+    three samples (e.g. the two realisations of a rare regime) every sample correlation is
+    ±1 and its variance estimate zero, so nothing is learnt: the identity.
     """
     n = samples.shape[0]
+    if n < 3:
+        return np.eye(samples.shape[1])
     x = samples - samples.mean(axis=0)
     sd = x.std(axis=0, ddof=1)
     x = x / np.where(sd > 0, sd, 1.0)
