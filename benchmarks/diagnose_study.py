@@ -155,7 +155,13 @@ def run_cases(cases: list[dict], full: bool, cases_dir: Path | None, say) -> lis
         if path is not None and path.is_file():
             rows.append(json.loads(path.read_text()))
             continue
-        row = run_case(case, full, say)
+        try:
+            row = run_case(case, full, say)
+        except Exception as exc:  # a crash is a result too: recorded, and the study goes on
+            say(f"{case['set']:8s} {case['name']:45s} ERROR {type(exc).__name__}: {exc}")
+            where = os.path.relpath(case["path"], REPO)
+            row = case | {"path": where, "verdict": "error", "right": False, "wall_s": None}
+            row["detail"] = {"error": f"{type(exc).__name__}: {exc}"}
         if path is not None:
             write_json(path, row)
         rows.append(row)
