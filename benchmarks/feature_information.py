@@ -28,13 +28,7 @@ import numpy as np
 
 import rattlefit as rf
 from rattlefit.features.ensemble import shrunk_correlation
-from rattlefit.features.folded import (
-    PHASE_BINS,
-    drive_phase,
-    folded_statistics,
-    phase_bins,
-    speed_maximum_phase,
-)
+from rattlefit.features.folded import PHASE_BINS
 from rattlefit.features.spectra import BandSpec, spectral_features
 from rattlefit.inference.rig import setup
 from rattlefit.io.recording import OperatingPoint
@@ -62,10 +56,7 @@ def features(rec) -> tuple[np.ndarray, np.ndarray]:
     """(bands, folded) features of a recording, the folded ones from the speed's maximum."""
     x = rec.relative_motion
     bands = np.asarray(spectral_features(x, BandSpec.for_recording(rec.sample_rate_hz)))
-    drive = setup(rec).drive
-    phase0 = speed_maximum_phase(float(drive.cos_coeffs[0]), float(drive.sin_coeffs[0]))
-    phase = drive_phase(x.size, rec.sample_rate_hz, rec.operating.drive_frequency_hz, phase0)
-    return bands, np.asarray(folded_statistics(x, phase_bins(phase)))
+    return bands, setup(rec).folded()
 
 
 def ensemble(geometry, op, params: dict, seeds) -> tuple[np.ndarray, np.ndarray]:

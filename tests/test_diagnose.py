@@ -101,7 +101,12 @@ def test_diagnose_names_withheld_flank_friction_and_sizes_it(tmp_path):
     stopped = any("step limit" in w for w in doc["warnings"])
     assert stopped == (not doc["baseline"]["converged"]), doc["warnings"]
     assert all(f"warning: {w}" in result.output for w in doc["warnings"])
-    assert (plots / "diagnosis.png").is_file()
+    # the friction also shows in the drive cycle, which the model without it is not fitted
+    # to: the statistics it misses are listed, and drawn
+    cycle = doc["drive_cycle"]
+    assert cycle["significant"] and cycle["missed"], cycle["p_value"]
+    assert "where in the drive cycle it misses" in result.output
+    assert (plots / "diagnosis.png").is_file() and (plots / "drive_cycle.png").is_file()
     assert not list(tmp_path.glob("**/*.tmp"))
 
 
@@ -434,3 +439,26 @@ def test_the_refit_without_effects_stops_once_settled(monkeypatch):
     calls.clear()
     trial_module.refit_until_settled(None, np.zeros(2), [], iterations=4)
     assert calls == [2, 2]  # the cap
+
+
+def test_a_drive_cycle_miss_is_where_a_statistic_passes_the_family_wise_threshold():
+    # 1 recording × 3 statistics × 16 bins = 48 statistics: Bonferroni at 0.01, two-sided
+    from scipy import stats as st
+
+    from rattlefit.diagnosis.cycle import CycleGap
+
+    threshold = float(st.norm.isf(0.01 / (2 * 48)))
+    model, sd = np.zeros((1, 3, 16)), np.full((1, 3, 16), 0.1)
+    measured = model.copy()
+    measured[0, 1, 4:7] = 0.1 * (threshold + 0.5)  # the upper flank, phases 0.28–0.41
+    measured[0, 0, 10] = -0.1 * (threshold - 0.1)  # close, but within
+    phases = (np.arange(16) + 0.5) / 16
+    gap = CycleGap(phases, measured, model, sd, threshold, 2 * 48 * st.norm.sf(threshold + 0.5))
+    assert gap.significant and gap.p_value < 0.01
+    assert [(m["statistic"], m["phase"]) for m in gap.missed()] == [
+        ("upper_flank", p) for p in phases[4:7]
+    ]
+    assert gap.phrase() == "upper_flank at phase 0.28–0.41 (more than modelled)"
+    json.dumps(gap.as_dict())
+    within = CycleGap(phases, np.where(measured > 0, 0.0, measured), model, sd, threshold, 1.0)
+    assert not within.significant and within.missed() == [] and within.phrase() == ""

@@ -13,7 +13,6 @@ from rattlefit.features.folded import (
     PHASE_BINS,
     drive_phase,
     folded_statistics,
-    phase_bins,
     speed_maximum_phase,
 )
 from rattlefit.features.orders import CONTACT_BAND
@@ -40,7 +39,7 @@ def sine_statistics(bins):
 def test_a_drive_synchronous_sine_folds_to_its_closed_form():
     phase = drive_phase(N, FS, F)
     x = 3e-3 * np.sin(2 * np.pi * phase) + 0.4  # any scale and offset: the flanks are ±1
-    got = folded_statistics(x, phase_bins(phase))
+    got = folded_statistics(x, phase)
     assert got.shape == (3 * PHASE_BINS,)
     np.testing.assert_allclose(got, sine_statistics(PHASE_BINS), atol=4e-3)
 
@@ -48,12 +47,12 @@ def test_a_drive_synchronous_sine_folds_to_its_closed_form():
 def test_the_phase_origin_rotates_the_bins_and_jax_agrees_with_numpy():
     shift = 3 / PHASE_BINS
     x = np.sin(2 * np.pi * drive_phase(N, FS, F))
-    rotated = folded_statistics(x, phase_bins(drive_phase(N, FS, F, shift)))
-    plain = folded_statistics(x, phase_bins(drive_phase(N, FS, F))).reshape(3, -1)
+    rotated = folded_statistics(x, drive_phase(N, FS, F, shift))
+    plain = folded_statistics(x, drive_phase(N, FS, F)).reshape(3, -1)
     np.testing.assert_allclose(rotated.reshape(3, -1), np.roll(plain, -3, axis=1), atol=4e-3)
     batch = np.stack([x, -x])
-    averaging = jnp.asarray(phase_bins(drive_phase(N, FS, F)))
-    traced = np.asarray(jax.jit(lambda v: folded_statistics(v, averaging))(jnp.asarray(batch)))
+    phase = jnp.asarray(drive_phase(N, FS, F))
+    traced = np.asarray(jax.jit(lambda v: folded_statistics(v, phase))(jnp.asarray(batch)))
     np.testing.assert_allclose(traced[0], plain.reshape(-1), atol=1e-9)
     # −x: positions flip sign, flanks swap
     flipped = plain * np.array([[-1.0], [1.0], [1.0]])

@@ -29,9 +29,13 @@ starts from an identification (:func:`~rattlefit.inference.identify.identify`) a
    misfit (:mod:`rattlefit.diagnosis.pairs`), and **sizes** the named candidate with a
    profile interval (:mod:`rattlefit.diagnosis.size`).
 
+Beside the bands, the drive-cycle-folded statistics of the recordings are compared with the
+model without effects (:mod:`rattlefit.diagnosis.cycle`): where in the speed fluctuation,
+and on which flank, it misses.
+
 The verdict (:class:`~rattlefit.diagnosis.result.Verdict`) is ``"none"`` when the model
 without extra effects fits the band spectrum (its χ² after the re-fit, on the fresh
-realisations, has p ≥ ``significance``) and no model-free
+realisations, has p ≥ ``significance``) and its drive-cycle statistics, and no model-free
 test stands out; the effects that significant model-free tests point to are named; a band
 candidate is named when it is supported and leaves a misfit consistent with noise; a
 significant gap that nothing explains is ``"unexplained"``.
@@ -59,10 +63,12 @@ from ..inference.options import FitOptions
 from ..inference.parameters import Z_END
 from ..inference.problem import release_states
 from ..inference.result import FitResult
+from ..inference.rig import setup
 from ..io.recording import Recording
 from ..physics.effects import EFFECTS, effect_class
 from ..reproducibility import platform_info
 from ..util import stamped
+from .cycle import cycle_gap
 from .evidence import ENCODER_VISIBLE, findings
 from .pairs import pair_candidates, pair_name, try_pair
 from .result import Diagnosis, EffectOutcome, baseline_warnings, finding_phrase
@@ -302,6 +308,18 @@ def with_interval(trial: Trial, diag: Diagnosis, fitted: dict, say) -> Diagnosis
     return dataclasses.replace(diag, outcomes=outcomes)
 
 
+def drive_cycle(trial: Trial, z_base, recordings, baseline: FitResult, level: float, say):
+    """The recordings' drive-cycle statistics against the model without effects at
+    ``z_base`` (:func:`~rattlefit.diagnosis.cycle.cycle_gap`) at the family-wise ``level``,
+    each recording's drive reconstructed as ``baseline``'s."""
+    say("comparing the drive-cycle statistics with the model without effects …")
+    rigs = [setup(r, drive=baseline.options.drive) for r in recordings]
+    gap = cycle_gap(trial, z_base, rigs, level)
+    if gap.significant:
+        say(f"  the drive-cycle statistics miss: {gap.phrase()} (p = {gap.p_value:.2g})")
+    return gap
+
+
 def identified(recordings, options: DiagnoseOptions, baseline: FitResult | None, progress, say):
     """``baseline``, checked to be of ``recordings``, or an identification of them."""
     if baseline is None:
@@ -363,6 +381,7 @@ def diagnose(
     baseline = identified(recordings, options, baseline, progress, say)
     trial = trial_of(recordings, baseline, options, in_program(options, seen))
     z_base, chi2_without, refit_costs, warnings = base_model(trial, baseline, say)
+    cycle = drive_cycle(trial, z_base, recordings, baseline, options.significance, say)
     gap = stats.chi2.sf(chi2_without, trial.dof) < options.significance
     tried, skipped = effects_to_try(options, seen, gap)
     for name, why in skipped.items():
@@ -385,6 +404,7 @@ def diagnose(
         chi2_without=chi2_without,
         skipped=skipped,
         platform=platform,
+        drive_cycle=cycle,
     )
     pairs = try_pairs(trial, diag, fitted, level, say)
     diag = with_interval(trial, dataclasses.replace(diag, outcomes=outcomes + pairs), fitted, say)

@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import stats
 
 from ..inference.result import FitResult
 from .evidence import ENCODER_VISIBLE, Finding
+
+if TYPE_CHECKING:
+    from .cycle import CycleGap
 
 #: A band counts as missed when its standardised residual exceeds this (in σ).
 MISSED_Z = 3.0
@@ -134,6 +138,14 @@ class Diagnosis:
     #: what a seeded result depends on (:func:`~rattlefit.reproducibility.platform_info`),
     #: captured when the diagnosis ran
     platform: dict = dataclasses.field(default_factory=dict, compare=False)
+    #: the drive-cycle statistics against the model without effects
+    #: (:func:`~rattlefit.diagnosis.cycle.cycle_gap`); None: not compared
+    drive_cycle: CycleGap | None = None
+
+    @property
+    def cycle_missed(self) -> bool:
+        """The drive-cycle statistics miss somewhere beyond their family-wise threshold."""
+        return self.drive_cycle is not None and self.drive_cycle.significant
 
     @property
     def missed_bands(self) -> list[dict]:
@@ -211,6 +223,7 @@ class Diagnosis:
             "band_centers_hz": np.asarray(self.band_centers).tolist(),
             "residuals": np.asarray(self.residuals).tolist(),
             "missed_bands": self.missed_bands,
+            "drive_cycle": None if self.drive_cycle is None else self.drive_cycle.as_dict(),
             "effects": [o.as_dict() for o in self.outcomes],
             "refit": {"cost_identified": self.refit_costs[0], "cost": self.refit_costs[1]},
             "warnings": list(self.warnings),
@@ -256,7 +269,8 @@ class Verdict:
     """The diagnosis' conclusion.
 
     kind : ``"none"`` (no significant gap in any domain), ``"unexplained"`` (a significant
-        gap that no candidate explains), ``"effect"`` or ``"effects"`` (one or two named).
+        gap, in the band spectrum or the drive-cycle statistics, that no candidate
+        explains), ``"effect"`` or ``"effects"`` (one or two named).
     effects : the named effects, model-free findings first.
     band_gap : the band spectrum misses significantly without extra effects.
     band_gap_explained : a band candidate closes that gap.
@@ -306,11 +320,24 @@ def verdict_of(diag: Diagnosis) -> Verdict:
     if closing is not None:
         names += [n for n in closing.effects if n not in names]
     fit_words = f"χ² {chi2:.1f} on {dof} dof, p = {p:.2g}"
-    if not names and not diag.band_gap:
+    cycle_words = (
+        f"the drive-cycle statistics miss: {diag.drive_cycle.phrase()} "
+        f"(p = {diag.drive_cycle.p_value:.2g})"
+        if diag.cycle_missed
+        else ""
+    )
+    if not names and not diag.band_gap and not cycle_words:
         kind = "none"
         sentence = (
             f"No significant gap: the model without extra effects fits the band spectrum "
-            f"({fit_words}) and no angle- or time-domain test stands out."
+            f"({fit_words}), its drive-cycle statistics, and no angle- or time-domain test "
+            "stands out."
+        )
+    elif not names and not diag.band_gap:
+        kind = "unexplained"
+        sentence = (
+            f"A gap that no candidate explains: the band spectrum fits ({fit_words}), but "
+            f"{cycle_words}."
         )
     elif not names:
         kind = "unexplained"
@@ -322,7 +349,8 @@ def verdict_of(diag: Diagnosis) -> Verdict:
             else f"; the candidate that leaves the least misfit, {best.name}, leaves "
             f"χ² {best.chi2_with:.1f} (p = {best.p_after:.2g})"
         )
-        sentence = f"A significant gap that no candidate explains: {fit_words}{tried}."
+        cycle = f"; {cycle_words}" if cycle_words else ""
+        sentence = f"A significant gap that no candidate explains: {fit_words}{tried}{cycle}."
     else:
         kind = "effect" if len(names) == 1 else "effects"
         parts = [finding_phrase(f) for _, f in found]

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import math
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 from jaxtyping import ArrayLike, Float
 
@@ -35,44 +37,63 @@ FLANK_PERCENTILES = (0.1, 99.9)
 STATISTICS = ("position", "upper_flank", "lower_flank")
 
 
-def drive_phase(n: int, sample_rate: float, frequency: float, phase0: float = 0.0) -> np.ndarray:
+def drive_phase(n: int, sample_rate: float, frequency, phase0=0.0):
     """Phase in the drive cycle (cycles, in [0, 1)) of ``n`` samples from t = 0:
     ``frac(f t − phase0)``."""
-    t = np.arange(n) / sample_rate
-    return np.mod(frequency * t - phase0, 1.0)
+    xp = array_namespace(frequency, phase0)
+    t = xp.arange(n) / sample_rate
+    return xp.mod(frequency * t - phase0, 1.0)
 
 
-def phase_bins(phase: np.ndarray, bins: int = PHASE_BINS) -> np.ndarray:
-    """One-hot matrix (N, bins) of each sample's phase bin, each column divided by its count
-    (a column's dot product is the bin's mean)."""
-    k = np.minimum((np.asarray(phase) * bins).astype(int), bins - 1)
-    onehot = (k[:, None] == np.arange(bins)[None, :]).astype(float)
-    return onehot / np.maximum(onehot.sum(axis=0), 1.0)
+def speed_maximum_phase(cos_coeff, sin_coeff):
+    """Phase (cycles) of the maximum of the speed fluctuation of a drive angle
+    ``c cos(ωt) + s sin(ωt)`` (its first harmonic): the speed is ``ω (s cos ωt − c sin ωt)``,
+    largest at ``ωt = atan2(−c, s)``."""
+    xp = array_namespace(cos_coeff, sin_coeff)
+    return xp.mod(xp.arctan2(-cos_coeff, sin_coeff) / (2.0 * math.pi), 1.0)
+
+
+def cycle_phase(drive, n: int, sample_rate: float):
+    """Drive phase (:func:`drive_phase`) of ``n`` samples from t = 0 of a
+    :class:`~rattlefit.physics.drive.Drive`, zero at its speed's maximum."""
+    phase0 = speed_maximum_phase(drive.cos_coeffs[0], drive.sin_coeffs[0])
+    return drive_phase(n, sample_rate, drive.frequency, phase0)
+
+
+def phase_means(values, phase, bins: int = PHASE_BINS):
+    """Mean of ``values`` (*batch, N) over the samples of each phase bin: (*batch, bins);
+    ``phase`` (N,) in cycles, in [0, 1). A bin without samples gives 0."""
+    xp = array_namespace(values, phase)
+    k = xp.minimum(xp.floor(xp.asarray(phase) * bins).astype(int), bins - 1)
+    if xp is np:
+        onehot = (k[:, None] == np.arange(bins)[None, :]).astype(float)
+        return (np.asarray(values) @ onehot) / np.maximum(onehot.sum(axis=0), 1.0)
+    count = jax.ops.segment_sum(jnp.ones_like(phase), k, num_segments=bins)
+
+    def per_signal(v):
+        return jax.ops.segment_sum(v, k, num_segments=bins) / jnp.maximum(count, 1.0)
+
+    flat = jnp.reshape(values, (-1, values.shape[-1]))
+    return jnp.reshape(jax.vmap(per_signal)(flat), (*values.shape[:-1], bins))
 
 
 def folded_statistics(
     x: Float[ArrayLike, "*batch N"],
-    averaging: Float[ArrayLike, "N bins"],
+    phase: Float[ArrayLike, " N"],
     *,
+    bins: int = PHASE_BINS,
     band: float = CONTACT_BAND,
 ) -> Float[ArrayLike, "*batch S"]:
-    """The folded statistics of Δθ* signals ``x`` (rad): for each phase bin of ``averaging``
-    (:func:`phase_bins`), the mean normalised position, the upper flank's share and the
-    lower flank's, concatenated in that order (S = 3 · bins, see :data:`STATISTICS`)."""
-    xp = array_namespace(x)
+    """The folded statistics of Δθ* signals ``x`` (rad) whose samples are at drive phases
+    ``phase`` (:func:`drive_phase`): for each of ``bins`` phase bins, the mean normalised
+    position, the upper flank's share and the lower flank's, concatenated in that order
+    (S = 3 · bins, see :data:`STATISTICS`)."""
+    xp = array_namespace(x, phase)
     x = xp.asarray(x)
     lo = xp.percentile(x, FLANK_PERCENTILES[0], axis=-1)[..., None]
     hi = xp.percentile(x, FLANK_PERCENTILES[1], axis=-1)[..., None]
     u = 2.0 * (x - lo) / xp.maximum(hi - lo, 1e-30) - 1.0
     edge = 1.0 - 2.0 * band
-    w = xp.asarray(averaging)
-    upper = xp.where(u > edge, 1.0, 0.0)
-    lower = xp.where(u < -edge, 1.0, 0.0)
-    return xp.concatenate([u @ w, upper @ w, lower @ w], axis=-1)
-
-
-def speed_maximum_phase(cos_coeff: float, sin_coeff: float) -> float:
-    """Phase (cycles) of the maximum of the speed fluctuation of a drive angle
-    ``c cos(ωt) + s sin(ωt)`` (its first harmonic): the speed is ``ω (s cos ωt − c sin ωt)``,
-    largest at ``ωt = atan2(−c, s)``."""
-    return math.atan2(-cos_coeff, sin_coeff) / (2.0 * math.pi) % 1.0
+    stacked = xp.stack([u, xp.where(u > edge, 1.0, 0.0), xp.where(u < -edge, 1.0, 0.0)], axis=-2)
+    means = phase_means(stacked, phase, bins)  # (*batch, 3, bins)
+    return xp.reshape(means, (*means.shape[:-2], 3 * bins))

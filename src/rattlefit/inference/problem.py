@@ -23,7 +23,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import RattlefitError
-from ..features.ensemble import ensemble_mean
+from ..features.ensemble import ensemble_mean, regime_weights
+from ..features.folded import cycle_phase, folded_statistics
 from ..features.spectra import spectral_features
 from ..io.recording import Recording
 from ..physics.model import Effect, RattleModel, RattleParams, share_stiffness_tables
@@ -75,6 +76,10 @@ class Problem(eqx.Module):
     #: extra effects whose fitted fields are specs named "<effect>.<field>" (diagnose); one
     #: compiled program holds them all, each at its absent end unless its fields move
     effects: tuple[Effect, ...] = ()
+    #: what each simulation is measured by: ``"bands"``, the log band PSDs (the fit's
+    #: features), or ``"bands+folded"``, those followed by the drive-cycle-folded statistics
+    #: of :mod:`rattlefit.features.folded` (what diagnose compares besides)
+    statistics: str = eqx.field(static=True, default="bands")
 
     @property
     def n_rec(self) -> int:
@@ -147,6 +152,7 @@ class Problem(eqx.Module):
         model and drive, its parameters and its release state.
         """
         opts = dict(self.static)
+        rate = opts["sample_rate"]
         # each row reads its recording's stiffness table out of the shared stack (a copy per
         # row would be read from memory at every vector-field call: 25–30 % slower)
         untabled, opts["stiffness_tables"] = share_stiffness_tables(self.models)
@@ -163,9 +169,14 @@ class Problem(eqx.Module):
                 motion = quantised_relative_motion(
                     sol, model, counts_per_rev=self.counts_per_rev[r], phase=phase
                 )
-                f = spectral_features(motion, self.bands)
             else:
-                f = spectral_features(sol.relative_motion, self.bands, noise_floor=self.floors[r])
+                motion = sol.relative_motion
+            floor = 0.0 if self.quantise else self.floors[r]
+            f = spectral_features(motion, self.bands, noise_floor=floor)
+            if self.statistics == "bands+folded":
+                drive = jax.tree_util.tree_map(lambda x: x[r], self.drives)
+                phase = cycle_phase(drive, motion.shape[-1], rate)
+                f = jnp.concatenate([f, folded_statistics(motion, phase)])
             # a failed solve gives a far-off, finite feature vector: the step is rejected
             return jnp.where(sol.result == 0, f, -30.0)
 
@@ -186,6 +197,11 @@ class Problem(eqx.Module):
         """Mean features of the realisations (second-last axis) in the regime kept: the
         recording's own (:func:`~rattlefit.features.ensemble.regime_weights`), or the common one."""
         return ensemble_mean(features, self.regime_threshold, self.regime_target())
+
+    def mean_weights(self, features):
+        """The weights (..., M) of :meth:`mean_of`: 1 for the realisations of band features
+        ``features`` (..., M, B) in the regime kept, 0 for the others."""
+        return regime_weights(features, self.regime_threshold, target=self.regime_target())
 
     def prior_rows(self, z):
         """The residual's prior rows at ``z``: ``(log v − log center) / log_sd`` of every

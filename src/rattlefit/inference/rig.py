@@ -11,6 +11,7 @@ import dataclasses
 
 import numpy as np
 
+from ..features.folded import cycle_phase, folded_statistics
 from ..features.spectra import BandSpec, quantisation_floor, rattle_index, spectral_features
 from ..io.recording import Recording
 from ..physics.drive import Drive
@@ -61,6 +62,13 @@ class RigSetup:
         g = self.geometry
         ratio = g.pitch_radius_driving / g.pitch_radius_driven
         return g.driven_inertia * ratio * self.drive.max_acceleration()
+
+    def folded(self, n: int | None = None) -> np.ndarray:
+        """The drive-cycle-folded statistics of the measured Δθ* (its first ``n`` samples,
+        default all), phase zero at the fitted drive's speed maximum
+        (:mod:`rattlefit.features.folded`): (3 · bins,)."""
+        x = self.recording.relative_motion[:n]
+        return np.asarray(folded_statistics(x, cycle_phase(self.drive, x.size, self.sample_rate)))
 
     def rattle_index(self) -> float:
         """IGR of the measured Δθ* (rad·Hz), eq. (10)."""

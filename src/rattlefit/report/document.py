@@ -336,6 +336,15 @@ def _diagnosis_section(diag: dict | None, paths: list[str], recordings) -> str:
     names = [_name(p) for p in paths]
     if len(diag["residuals"]) == len(names):
         parts.append(_img(figures.residuals(diag, names, MISSED_Z), "band residuals"))
+    cycle = diag.get("drive_cycle")
+    if cycle and len(cycle["measured"]) == len(names):
+        verdict = "misses" if cycle["significant"] else "fits"
+        parts.append(
+            f"<p>The drive-cycle statistics (not fitted): the model without effects {verdict}"
+            f" them (largest |z| threshold {cycle['threshold']:.2f}, p = "
+            f"{cycle['p_value']:.2g}).</p>"
+        )
+        parts.append(_img(figures.drive_cycle(cycle, names), "drive-cycle statistics"))
     return "\n".join(parts)
 
 

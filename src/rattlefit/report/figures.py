@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 
 from .explain import display_unit
-from .plots import draw_flanks, pyplot
+from .plots import draw_drive_cycle, draw_flanks, pyplot
 from .tables import DISPLAY
 
 #: Seconds of the recording's Δθ* shown as a time history.
@@ -180,6 +180,13 @@ def residuals(diagnosis: dict, names: list[str], missed_z: float) -> bytes:
         ax.legend(fontsize=8)
     fig.tight_layout()
     return png(fig)
+
+
+def drive_cycle(cycle: dict, names: list[str]) -> bytes:
+    """Each recording's drive-cycle statistics against the model without effects
+    (:func:`~rattlefit.report.plots.draw_drive_cycle`), from the diagnosis JSON's
+    ``drive_cycle``."""
+    return png(draw_drive_cycle(cycle, names))
 
 
 def flanks(recording, title: str) -> bytes:

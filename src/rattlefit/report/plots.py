@@ -220,6 +220,38 @@ def draw_flanks(axes, recording: Recording) -> None:
         ax.legend(fontsize=8)
 
 
+#: Titles of the drive-cycle statistics (:data:`rattlefit.features.folded.STATISTICS`).
+CYCLE_LABELS = {
+    "position": "mean position (−1, +1: the flanks)",
+    "upper_flank": "share at the upper flank",
+    "lower_flank": "share at the lower flank",
+}
+
+
+def draw_drive_cycle(cycle: dict, names: Sequence[str]):
+    """A figure of each recording's drive-cycle statistics (a row each, a panel per
+    statistic) against the model without effects, its mean ± 2 spreads, the misses circled;
+    ``cycle`` is :meth:`~rattlefit.diagnosis.cycle.CycleGap.as_dict`."""
+    phases = np.asarray(cycle["phases"], dtype=float)
+    measured, model, sd = (np.asarray(cycle[k], dtype=float) for k in ("measured", "model", "sd"))
+    n_rec, n_stat = measured.shape[:2]
+    fig, axes = pyplot().subplots(n_rec, n_stat, figsize=(12, 3 * n_rec), squeeze=False)
+    for k in range(n_rec):
+        for s, name in enumerate(cycle["statistics"]):
+            ax = axes[k, s]
+            lo, hi = model[k, s] - 2 * sd[k, s], model[k, s] + 2 * sd[k, s]
+            ax.fill_between(phases, lo, hi, color="0.88", lw=0, label="model ± 2σ")
+            ax.plot(phases, model[k, s], "-", color="C0", lw=1, label="model")
+            ax.plot(phases, measured[k, s], "ko", ms=3, label="recording")
+            out = np.abs(measured[k, s] - model[k, s]) / sd[k, s] > cycle["threshold"]
+            ax.plot(phases[out], measured[k, s][out], "o", mfc="none", mec="C3", ms=9)
+            ax.set_title(f"{names[k]}: {CYCLE_LABELS.get(name, name)}", fontsize=9)
+            ax.set_xlabel("drive phase (cycles from the fastest point)")
+    axes[0, 0].legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
 def plot_diagnosis(
     diag: Diagnosis,
     directory: str | Path,
@@ -228,9 +260,9 @@ def plot_diagnosis(
     recordings: Sequence[Recording] = (),
 ) -> list[Path]:
     """Each recording's standardised band residuals without extra effects and with each of
-    the ``top`` effects that remove most misfit, over the χ² of every effect tried; and,
-    for each of ``recordings``, its flank contacts against each wheel's angle
-    (:func:`draw_flanks`)."""
+    the ``top`` effects that remove most misfit, over the χ² of every effect tried; the
+    drive-cycle statistics against the model (:func:`draw_drive_cycle`); and, for each of
+    ``recordings``, its flank contacts against each wheel's angle (:func:`draw_flanks`)."""
     directory = Path(directory)
     n_rec = diag.residuals.shape[0]
     fig, axes = pyplot().subplots(n_rec + 1, 1, figsize=(9, 3.2 * (n_rec + 1)), squeeze=False)
@@ -266,6 +298,10 @@ def plot_diagnosis(
     ax.legend(fontsize=8)
     fig.tight_layout()
     out = [_save(fig, directory / "diagnosis.png")]
+    if diag.drive_cycle is not None:
+        names = [Path(p).name for p in diag.baseline.recordings]
+        fig = draw_drive_cycle(diag.drive_cycle.as_dict(), names)
+        out.append(_save(fig, directory / "drive_cycle.png"))
     for k, rec in enumerate(recordings):
         fig, axes = pyplot().subplots(1, 2, figsize=(12, 3.8))
         draw_flanks(axes, rec)

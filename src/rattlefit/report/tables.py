@@ -151,9 +151,30 @@ def _level(diag: Diagnosis) -> float:
     return diag.findings[0].level if diag.findings else diag.significance
 
 
+def cycle_lines(diag: Diagnosis) -> list[str]:
+    """Where the model without effects misses the drive-cycle statistics, one line each."""
+    cycle = diag.drive_cycle
+    if cycle is None:
+        return []
+    if not cycle.significant:
+        return [
+            f"the drive-cycle statistics fit (largest |z| below {cycle.threshold:.2f}, "
+            f"p = {cycle.p_value:.2g})"
+        ]
+    lines = [
+        f"where in the drive cycle it misses (|z| > {cycle.threshold:.2f}, phase 0 = fastest):"
+    ]
+    for m in cycle.missed():
+        lines.append(
+            f"  recording {m['recording']}: {m['statistic']:12s} phase {m['phase']:.2f}  "
+            f"z = {m['z']:+.1f}"
+        )
+    return lines
+
+
 def format_diagnosis(diag: Diagnosis) -> str:
     """The verdict in one sentence, then the model-free findings, where the model misses the
-    bands, and each effect's χ² without and with it."""
+    bands and the drive cycle, and each effect's χ² without and with it."""
     verdict = diag.verdict
     lines = [f"verdict: {verdict.label} — {verdict.sentence}", ""]
     lines.append(f"model-free tests (counted below p = {_level(diag):.2g} and the size floor):")
@@ -185,6 +206,7 @@ def format_diagnosis(diag: Diagnosis) -> str:
             f"no band misses by more than {MISSED_Z:g} σ (χ² = {diag.baseline.chi2:.1f} on "
             f"{diag.baseline.dof} dof, p = {diag.baseline.p_value:.2g})"
         )
+    lines += cycle_lines(diag)
     rows = [
         ("effect", "χ² without → with", "gap closed", "p", "p after", "supported", "fitted size")
     ]

@@ -1,0 +1,148 @@
+"""Where in the drive cycle the model misses: the folded statistics of Δθ* against the
+simulated ensemble.
+
+The band spectrum is what the model is fitted to; the drive-cycle-folded statistics
+(:mod:`rattlefit.features.folded`: per phase bin, the mean position between the flanks and
+each flank's share of the time) are not, so they test the fitted model out of sample. At the
+model without effects' point the fresh realisations are simulated once and measured both
+ways: the band features pick the realisations in the recording's own regime (as the fit's
+mean does), and those give each folded statistic's mean and its run-to-run spread. A
+statistic whose standardised residual exceeds the family-wise threshold (Bonferroni over
+every statistic of every recording, two-sided) is *missed*: that says where in the cycle,
+and on which flank, the model is wrong.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from scipy import stats
+
+from ..features.folded import PHASE_BINS, STATISTICS
+from ..inference.forward import evaluate
+from ..inference.rig import RigSetup
+from .trial import Trial
+
+#: Floor on a folded statistic's spread (a flank share, or a position in units of half the
+#: play): a statistic that every realisation gives alike, e.g. a share that is always zero,
+#: still has the recording's own sampling error.
+CYCLE_SD_FLOOR = 0.02
+#: Fewest realisations in the recording's regime for the spread; with fewer, all are used.
+MIN_KEPT = 3
+
+
+@dataclasses.dataclass(frozen=True)
+class CycleGap:
+    """The drive-cycle statistics of the recordings against the model without effects.
+
+    phases : (bins,) phase-bin centres, cycles from the drive speed's maximum.
+    measured, model, sd : (R, 3, bins) the recordings' statistics, the ensemble mean and
+        the spread of one recording's (:data:`~rattlefit.features.folded.STATISTICS`:
+        position, upper flank's share, lower flank's share).
+    threshold : the family-wise |z| threshold at the diagnosis' significance.
+    p_value : Bonferroni p of the largest |z| (1 at most).
+    """
+
+    phases: np.ndarray
+    measured: np.ndarray
+    model: np.ndarray
+    sd: np.ndarray
+    threshold: float
+    p_value: float
+
+    @property
+    def z(self) -> np.ndarray:
+        """(R, 3, bins) standardised residuals ``(measured − model) / sd``."""
+        return (self.measured - self.model) / self.sd
+
+    @property
+    def significant(self) -> bool:
+        """Some statistic is beyond the family-wise threshold."""
+        return bool(np.max(np.abs(self.z)) > self.threshold)
+
+    def missed(self) -> list[dict]:
+        """The statistics beyond :attr:`threshold`: recording index, statistic, phase
+        (cycles) and z."""
+        z = self.z
+        return [
+            {
+                "recording": int(r),
+                "statistic": STATISTICS[s],
+                "phase": float(self.phases[b]),
+                "z": float(z[r, s, b]),
+            }
+            for r, s, b in zip(*np.nonzero(np.abs(z) > self.threshold), strict=True)
+        ]
+
+    def phrase(self) -> str:
+        """Where the misses are, e.g. ``upper_flank at phases 0.53–0.84 (less than
+        modelled)``; empty when none."""
+        parts = []
+        for s, name in enumerate(STATISTICS):
+            z = self.z[:, s]
+            hit = np.abs(z) > self.threshold
+            if not hit.any():
+                continue
+            phases = self.phases[np.nonzero(hit.any(axis=0))[0]]
+            sign = "more" if np.sum(z[hit]) > 0 else "less"
+            span = f"{phases.min():.2f}" + (
+                f"–{phases.max():.2f}" if phases.max() > phases.min() else ""
+            )
+            parts.append(f"{name} at phase {span} ({sign} than modelled)")
+        return "; ".join(parts)
+
+    def as_dict(self) -> dict:
+        return {
+            "p_value": self.p_value,
+            "threshold": self.threshold,
+            "significant": self.significant,
+            "phases": self.phases.tolist(),
+            "statistics": list(STATISTICS),
+            "measured": self.measured.tolist(),
+            "model": self.model.tolist(),
+            "sd": self.sd.tolist(),
+            "missed": self.missed(),
+        }
+
+
+def regime_kept(trial: Trial, bands: np.ndarray) -> np.ndarray:
+    """(R, M) which realisations are in each recording's regime, judged by their band
+    features ``bands`` (R, M, B) as the fit's mean judges them; all when fewer than
+    :data:`MIN_KEPT`."""
+    problem = trial.problem
+    w = np.asarray(problem.mean_weights(bands)) > 0
+    w[w.sum(axis=1) < MIN_KEPT] = True
+    return w
+
+
+def ensemble_spread(per: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and the spread of one recording's statistics (with the Monte Carlo error of the
+    mean; floored, :data:`CYCLE_SD_FLOOR`) from realisations ``per`` (M, S): (S,) each."""
+    m = per.shape[0]
+    spread = per.std(axis=0, ddof=1) * np.sqrt(1.0 + 1.0 / m)
+    return per.mean(axis=0), np.sqrt(spread**2 + CYCLE_SD_FLOOR**2)
+
+
+def cycle_gap(trial: Trial, z, rigs: list[RigSetup], level: float) -> CycleGap:
+    """The drive-cycle statistics of ``rigs``' recordings against the model at ``z`` on the
+    trial's fresh realisations (:class:`CycleGap`), judged at the family-wise ``level``."""
+    problem = dataclasses.replace(trial.problem, statistics="bands+folded")
+    per = evaluate(problem, np.asarray(z)[None], trial.y0)[0]  # (R, M, B + S)
+    n_band = np.asarray(trial.problem.data).shape[-1]
+    kept = regime_kept(trial, per[..., :n_band])
+    n = dict(problem.static)["n_samples"]
+    measured = np.stack([rig.folded(n) for rig in rigs])
+    spreads = [ensemble_spread(per[r, kept[r], n_band:]) for r in range(len(rigs))]
+    mean, sd = (np.stack(x) for x in zip(*spreads, strict=True))
+    family = measured.size
+    shape = (len(rigs), len(STATISTICS), PHASE_BINS)
+    largest = float(np.max(np.abs((measured - mean) / sd)))
+    return CycleGap(
+        phases=(np.arange(PHASE_BINS) + 0.5) / PHASE_BINS,
+        measured=measured.reshape(shape),
+        model=mean.reshape(shape),
+        sd=sd.reshape(shape),
+        threshold=float(stats.norm.isf(level / (2 * family))),
+        p_value=float(min(1.0, 2 * family * stats.norm.sf(largest))),
+    )
