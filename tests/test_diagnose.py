@@ -411,13 +411,17 @@ def test_the_refit_without_effects_kept_is_the_one_better_on_the_validation_set(
 
     monkeypatch.setattr(diagnose_module, "free_alternatives", lambda z, p: np.zeros((3, 7)))
     monkeypatch.setattr(diagnose_module, "costs", lambda t, zs: np.arange(len(zs), 0, -1.0))
+
+    def fake_path(trial_, z, held, *, iterations):
+        return np.stack([fake_refit(trial_, z, held, iterations=iterations)])
+
     monkeypatch.setattr(diagnose_module, "refit", fake_refit)
-    monkeypatch.setattr(diagnose_module, "refit_until_settled", fake_refit)
+    monkeypatch.setattr(diagnose_module, "settled_path", fake_path)
     monkeypatch.setattr(diagnose_module, "chi2s", lambda t, zs, y0: np.array(validation))
     monkeypatch.setattr(diagnose_module, "residual_rows", lambda t, zs: np.ones((1, 4)))
     z_base, _, refit_cost = diagnose_module.refit_without_effects(trial, np.zeros(7), print)
-    assert helds == [([0, 2, 3, 5, 6], None), ([0, 5, 6], trial.base_iterations)]
-    assert z_base[0] == kept + 1 and refit_cost == 4.0
+    assert helds == [([0, 5, 6], trial.base_iterations), ([0, 2, 3, 5, 6], None)]
+    assert z_base[0] == (2, 1)[kept] and refit_cost == 4.0
 
 
 def test_the_refit_without_effects_stops_once_settled(monkeypatch):
@@ -433,11 +437,12 @@ def test_the_refit_without_effects_stops_once_settled(monkeypatch):
         return z + 1
 
     monkeypatch.setattr(trial_module, "refit", two_more)
-    z = trial_module.refit_until_settled(None, np.zeros(2), [], iterations=12)
-    assert calls == [2, 2, 2] and z[0] == 3.0
+    path = trial_module.settled_path(None, np.zeros(2), [], iterations=12)
+    assert calls == [2, 2, 2]
+    np.testing.assert_array_equal(path[:, 0], [1.0, 2.0, 3.0])  # every two iterations' point
     path = iter([100.0, 50.0, 25.0])
     calls.clear()
-    trial_module.refit_until_settled(None, np.zeros(2), [], iterations=4)
+    trial_module.settled_path(None, np.zeros(2), [], iterations=4)
     assert calls == [2, 2]  # the cap
 
 

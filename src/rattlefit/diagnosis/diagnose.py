@@ -84,8 +84,8 @@ from .trial import (
     judge_effect,
     moves,
     refit,
-    refit_until_settled,
     residual_rows,
+    settled_path,
 )
 
 
@@ -100,7 +100,7 @@ class DiagnoseOptions:
     iterations : Gauss–Newton iterations per effect.
     base_iterations : most Gauss–Newton iterations of the re-fit without effects that moves
         the nuisances (with their priors) besides ``a`` and ``drag_torque``; it stops
-        earlier once settled (:func:`~rattlefit.diagnosis.trial.refit_until_settled`).
+        earlier once settled (:func:`~rattlefit.diagnosis.trial.settled_path`).
     n_final : realisations behind each final χ² (default: the fit's covariance count).
     significance : family-wise level: an effect counts as supported when its F-test p is
         below ``significance`` over the number of effects fitted (Bonferroni); the
@@ -127,12 +127,12 @@ class DiagnoseOptions:
 
 def refit_without_effects(trial: Trial, z, say) -> tuple[np.ndarray, float, float]:
     """The model without effects re-fitted from the best of the screening's alternatives of
-    ``a`` and ``drag_torque`` at ``z`` (every effect absent), twice: over ``a`` and
-    ``drag_torque`` alone, and over them and the nuisances until settled
-    (:func:`~rattlefit.diagnosis.trial.refit_until_settled`). The
-    one with the lower χ² on the validation realisations is kept, since a re-fit with more
-    coordinates can chase the fit's own few realisations. Returns the kept point, the cost
-    at ``z`` and the kept point's cost."""
+    ``a`` and ``drag_torque`` at ``z`` (every effect absent): over ``a`` and ``drag_torque``
+    alone, and over them and the nuisances, two iterations at a time until settled
+    (:func:`~rattlefit.diagnosis.trial.settled_path`). Of these points the one with the
+    lowest χ² on the validation realisations is kept: a re-fit with more coordinates can
+    chase the fit's own few realisations, and validation stops it early. Returns the kept
+    point, the cost at ``z`` and the kept point's cost."""
     starts = distinct_rows(
         trial.dried(free_alternatives(np.asarray(z, dtype=float), trial.problem))
     )
@@ -142,20 +142,12 @@ def refit_without_effects(trial: Trial, z, say) -> tuple[np.ndarray, float, floa
     )
     cost = costs(trial, starts)  # row 0: z
     start = starts[int(np.argmin(cost))]
-    refits = np.stack(
-        [
-            refit(trial, start, trial.held()),
-            refit_until_settled(
-                trial, start, trial.held(nuisances=False), iterations=trial.base_iterations
-            ),
-        ]
-    )
+    path = settled_path(trial, start, trial.held(nuisances=False), iterations=trial.base_iterations)
+    refits = np.concatenate([refit(trial, start, trial.held())[None], path])
     validation = chi2s(trial, refits, trial.validation)
     k = int(np.argmin(np.where(np.isfinite(validation), validation, np.inf)))
-    say(
-        f"  validation χ² {validation[0]:.1f} (a, T_b) and {validation[1]:.1f} (and the "
-        f"nuisances): keeping the {'first' if k == 0 else 'second'}"
-    )
+    kept = "a and T_b alone" if k == 0 else f"with the nuisances after {2 * k} iterations"
+    say(f"  validation χ² {' → '.join(f'{v:.1f}' for v in validation)}: keeping {kept}")
     refit_cost = float(np.sum(residual_rows(trial, refits[k][None]) ** 2))
     return refits[k], float(cost[0]), refit_cost
 

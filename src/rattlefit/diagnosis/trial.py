@@ -30,7 +30,7 @@ from .result import EffectOutcome, gap_closed
 #: One-sided 95 % quantile of the standard normal (the χ² drop's Monte Carlo allowance).
 Z95_ONE_SIDED = 1.645
 #: The re-fit without effects stops once two iterations lower its cost by less than this
-#: share (:func:`refit_until_settled`).
+#: share (:func:`settled_path`).
 BASE_TOLERANCE = 0.02
 
 
@@ -56,7 +56,7 @@ class Trial:
         (dry flanks have no oil film, and a film fitted to them would absorb dissipation
         that is in the contact).
     base_iterations : most Gauss–Newton iterations of the re-fit without effects over the
-        nuisances (:func:`refit_until_settled`).
+        nuisances (:func:`settled_path`).
     """
 
     problem: Problem
@@ -132,21 +132,23 @@ def refit(trial: Trial, z, held: list[int], *, iterations: int | None = None) ->
     return polish_profile(rows, z[None], [held], steps, iterations=iterations)[0]
 
 
-def refit_until_settled(
+def settled_path(
     trial: Trial, z, held: list[int], *, iterations: int, tolerance: float = BASE_TOLERANCE
 ) -> np.ndarray:
-    """``z`` re-fitted on the coordinates not in ``held`` (:func:`refit`), two Gauss–Newton
-    iterations at a time, until the fit's cost drops by less than the share ``tolerance``
-    over two, or after ``iterations`` in all."""
+    """The points (K, P) of a re-fit of ``z`` on the coordinates not in ``held``
+    (:func:`refit`) after every two Gauss–Newton iterations, until the fit's cost drops by
+    less than the share ``tolerance`` over two, or after ``iterations`` in all."""
     cost = float(costs(trial, np.asarray(z)[None])[0])
+    path = []
     for _ in range(0, iterations, 2):
         z = refit(trial, z, held, iterations=2)
+        path.append(z)
         new = float(costs(trial, z[None])[0])
         settled = new > (1.0 - tolerance) * cost
         cost = new
         if settled:
             break
-    return z
+    return np.stack(path) if path else np.asarray(z)[None]
 
 
 def fresh_means(trial: Trial, zs, y0=None) -> np.ndarray:
