@@ -20,9 +20,8 @@ import numpy as np
 from scipy import stats
 
 from ..features.folded import PHASE_BINS, STATISTICS
-from ..inference.forward import evaluate
 from ..inference.rig import RigSetup
-from .trial import Trial
+from .trial import Trial, fresh_features
 
 #: Floor on a folded statistic's spread (a flank share, or a position in units of half the
 #: play): a statistic that every realisation gives alike, e.g. a share that is always zero,
@@ -128,7 +127,7 @@ def cycle_gap(trial: Trial, z, rigs: list[RigSetup], level: float) -> CycleGap:
     """The drive-cycle statistics of ``rigs``' recordings against the model at ``z`` on the
     trial's fresh realisations (:class:`CycleGap`), judged at the family-wise ``level``."""
     problem = dataclasses.replace(trial.problem, statistics="bands+folded")
-    per = evaluate(problem, np.asarray(z)[None], trial.y0)[0]  # (R, M, B + S)
+    per = fresh_features(trial, np.asarray(z)[None], problem=problem)[0]  # (R, M, B + S)
     n_band = np.asarray(trial.problem.data).shape[-1]
     kept = regime_kept(trial, per[..., :n_band])
     n = dict(problem.static)["n_samples"]

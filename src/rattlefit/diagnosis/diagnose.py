@@ -88,6 +88,12 @@ from .trial import (
     settled_path,
 )
 
+#: The final χ²s are measured on this many times the fit's covariance realisations: near a
+#: regime boundary the χ² of one set of 24 can be 11 and of another 67 at the same point
+#: (the mean keeps the realisations in the recording's regime, and a small set may hold
+#: none), and a candidate that makes the regime unique would be credited with that.
+FINAL_FACTOR = 2
+
 
 @dataclasses.dataclass(frozen=True)
 class DiagnoseOptions:
@@ -101,7 +107,8 @@ class DiagnoseOptions:
     base_iterations : most Gauss–Newton iterations of the re-fit without effects that moves
         the nuisances (with their priors) besides ``a`` and ``drag_torque``; it stops
         earlier once settled (:func:`~rattlefit.diagnosis.trial.settled_path`).
-    n_final : realisations behind each final χ² (default: the fit's covariance count).
+    n_final : realisations behind each final χ² (default: :data:`FINAL_FACTOR` × the fit's
+        covariance count).
     significance : family-wise level: an effect counts as supported when its F-test p is
         below ``significance`` over the number of effects fitted (Bonferroni); the
         model-free tests share it likewise, and the band gap is tested at it.
@@ -196,14 +203,16 @@ def trial_of(
 ) -> Trial:
     """The :class:`Trial` of ``baseline``: its problem with the candidates ``names`` (default:
     every effect of ``options``), noise model, fresh release states for the final comparison
-    (seeded from the fit's seed + 1) and as many validation states (seed + 2)."""
+    (seeded from the fit's seed + 1) and validation states (seed + 2; the fit's covariance
+    count)."""
     base = baseline.problem_for(recordings)
     problem, candidates = candidate_problem(base, options.effects if names is None else names)
     fit_options = baseline.options
-    n_final = options.n_final or fit_options.n_covariance_realisations
+    n_validation = fit_options.n_covariance_realisations
+    n_final = options.n_final or FINAL_FACTOR * n_validation
     y0 = release_states(base, baseline.z, n_final, np.random.default_rng(fit_options.seed + 1))
     validation = release_states(
-        base, baseline.z, n_final, np.random.default_rng(fit_options.seed + 2)
+        base, baseline.z, n_validation, np.random.default_rng(fit_options.seed + 2)
     )
     dry = dry_films(base, recordings)
     nuisances = [i for i, sp in enumerate(base.specs) if sp.log_sd is not None]

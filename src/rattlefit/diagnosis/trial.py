@@ -151,11 +151,22 @@ def settled_path(
     return np.stack(path) if path else np.asarray(z)[None]
 
 
+def fresh_features(trial: Trial, zs, y0=None, *, problem: Problem | None = None) -> np.ndarray:
+    """Features (K, R, M, B) at the points ``zs`` of each of the fresh release states (or of
+    ``y0``, (R, M, 2)) by ``problem`` (default ``trial.problem``). More states than the
+    problem has dither offsets are simulated in parts, each part with the offsets from the
+    first on."""
+    problem = trial.problem if problem is None else problem
+    y0 = np.asarray(trial.y0 if y0 is None else y0)
+    part = np.asarray(problem.dither).shape[0]
+    pieces = [evaluate(problem, zs, y0[:, i : i + part]) for i in range(0, y0.shape[1], part)]
+    return np.concatenate(pieces, axis=2)
+
+
 def fresh_means(trial: Trial, zs, y0=None) -> np.ndarray:
     """Mean features (K, R, B) at the points ``zs`` on the fresh release states (or on
-    ``y0``)."""
-    y0 = trial.y0 if y0 is None else y0
-    return np.asarray(trial.problem.mean_of(evaluate(trial.problem, zs, y0)))
+    ``y0``), in the recording's regime (:meth:`~rattlefit.inference.problem.Problem.mean_of`)."""
+    return np.asarray(trial.problem.mean_of(fresh_features(trial, zs, y0)))
 
 
 def chi2s(trial: Trial, zs, y0=None) -> np.ndarray:
