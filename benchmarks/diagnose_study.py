@@ -9,12 +9,13 @@ recording, the effect (or, for dissipation in contact, any of the dissipative ca
 otherwise.
 
     python benchmarks/diagnose_study.py [--sets shared,clean,injected] [--full]
-                                        [--only NAME ...] [--cases-dir DIR]
+                                        [--only NAME ...] [--cases-dir DIR [--rows-only]]
                                         [--json out.json] [--quiet]
 
 A full study takes hours: with ``--cases-dir`` each case's row is written there as it ends
 (``<name>.json``) and a case whose row is there is not run again, so an interrupted study
 resumes; the summary covers every row in the directory that the selection holds.
+``--rows-only`` summarises those rows and runs nothing.
 
 Without ``--full`` only the model-free tests run (seconds per recording): the verdict is what
 they name, or ``none``, and a case counts as clean when its effect has no model-free test
@@ -194,6 +195,11 @@ def main() -> None:
     ap.add_argument("--cases-dir", type=Path)
     ap.add_argument("--json")
     ap.add_argument("--quiet", action="store_true")
+    ap.add_argument(
+        "--rows-only",
+        action="store_true",
+        help="summarise the rows already in --cases-dir; run no case",
+    )
     args = ap.parse_args()
     say = (lambda s: None) if args.quiet else (lambda s: print(s, flush=True))
     cases = []
@@ -203,6 +209,10 @@ def main() -> None:
         cases = [c for c in cases if c["name"] in args.only]
     if args.cases_dir is not None:
         args.cases_dir.mkdir(parents=True, exist_ok=True)
+    if args.rows_only:
+        if args.cases_dir is None:
+            ap.error("--rows-only needs --cases-dir")
+        cases = [c for c in cases if (args.cases_dir / f"{c['name']}.json").is_file()]
     rows = run_cases(cases, args.full, args.cases_dir, say)
     result = summary(rows)
     say(json.dumps({k: v for k, v in result.items() if k != "confusion"}, indent=1))
