@@ -44,8 +44,8 @@ class Trial:
     noise, data, dof : the identification's noise model, measured features (R, B) and
         degrees of freedom.
     y0 : fresh release states of the final comparison.
-    validation : release states (as many, from another seed) that choose between the
-        re-fits of the model without effects; never used to judge.
+    validation : release states (the fit's covariance count, from another seed) that
+        choose between the re-fits of the model without effects; never used to judge.
     iterations : Gauss–Newton iterations per effect's fit.
     nuisances : the coordinates with a prior (viscosity and stiffness scales, h_min, the
         backlashes). One re-fit of the model without effects moves them, with their prior
