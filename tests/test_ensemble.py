@@ -184,3 +184,31 @@ def test_the_recording_regime_traces_as_it_computes_on_the_host():
     )
     # the spread of each trial's chosen regime: two realisations' in the rare, four's else
     assert np.all(np.isfinite(sig)) and np.all(sig > 0)
+
+
+FOLDED_SEED = 9
+
+
+def test_regimes_and_the_floor_term_come_from_the_bands_alone():
+    # 24 realisations of 30 bands followed by 12 folded statistics: three realisations are
+    # far off in the folded statistics only, three others far off in the bands only. With
+    # n_bands the regimes are told apart by the bands (the band outliers leave, the folded
+    # ones stay) and the quantisation floor's term, which belongs to a band PSD, is added
+    # to no folded statistic even where that statistic's value would put it below the floor
+    rng = np.random.default_rng(FOLDED_SEED)
+    n, s, sd = 24, 12, 0.1
+    level = np.concatenate([np.linspace(-5.0, -11.0, B), np.full(s, -12.0)])
+    ens = level + sd * rng.standard_normal((1, n, B + s))
+    ens[0, :3, B:] += 1.0
+    ens[0, 3:6, :B] += 1.0
+    kw = dict(m=6, floor=0.0, noise_floor=np.array([1e-11]), floor_sd=0.5, threshold=THRESHOLD)
+    got = np.asarray(band_sigma(ens, n_bands=B, **kw))[0]
+    keep = np.r_[0:3, 6:n]
+    spread = np.std(ens[0, keep], axis=0, ddof=1) * np.sqrt(1 + 1 / 6)
+    assert got[B:] == pytest.approx(spread[B:], rel=1e-9)  # no floor term, band regime
+    assert got[0] == pytest.approx(spread[0], rel=1e-6)  # a band far above the floor
+    # every feature taken for a band: both kinds of outliers leave, and the floor term
+    # (share clipped to 1, since -12 lies below the floor's -11) is added to the statistics
+    blind = np.asarray(band_sigma(ens, **kw))[0]
+    rest = np.std(ens[0, 6:], axis=0, ddof=1) * np.sqrt(1 + 1 / 6)
+    assert blind[B:] == pytest.approx(np.sqrt(rest[B:] ** 2 + 0.5**2), rel=1e-9)

@@ -18,6 +18,7 @@ import pytest
 import rattlefit as rf
 from rattlefit import FitOptions, identify, read_recording, synthesize
 from rattlefit.features.ensemble import band_sigma, chaotic_part, shrunk_correlation
+from rattlefit.features.folded import PHASE_BINS
 from rattlefit.inference import forward
 from rattlefit.inference.laplace import debiased_information
 from rattlefit.inference.least_squares import (
@@ -73,6 +74,8 @@ CHAOS_VARIANCE_TOLERANCE = 0.03  # a band variance's mean over 2000 ensembles of
 BOTH_SIDES = (0.35, 0.65)  # the share of spread starts below a prior's median: about half
 END_GAP = 0.1  # spread starts reach within this share of the (log) range of either end
 END_FACTOR = 1.5  # … and, over the (a, T_b) ranges, within this factor of either end
+FOLDED_Z = 4.5  # Bonferroni over 48 statistics at 0.01 (3.5), widened for a 12-sample sd
+FOLDED_SD_FLOOR = 0.01  # a statistic every realisation and the recording hold at 0 or 1
 WIDE_PRIOR_END_FACTOR = 1.2  # a prior wider than the range: its starts reach near both ends
 
 
@@ -785,3 +788,36 @@ def test_what_would_pin_a_parameter_depends_on_its_lubrication():
     assert "longer recording" in what_would_pin("drag_torque", ["boundary"], identified=False)
     assert "viscosity_scale" in what_would_pin("viscosity", ["dry"], identified=False)
     assert what_would_pin("min_film", ["boundary"], identified=False) == ""  # a nuisance
+
+
+def test_the_folded_statistics_of_the_truth_match_the_recording(mild_recording):
+    # with features="bands+folded" the data are the bands followed by the recording's
+    # drive-cycle statistics, and the simulations at the truth are measured the same way:
+    # phase zero at the same speed maximum, the same flank normalisation. A shift of the
+    # simulated phase by a bin, or statistics of another signal, would put the recording
+    # many standard deviations off the ensemble in the bins where the gear leaves a flank.
+    rec, truth = mild_recording
+    problem = _problem([rec], FitOptions(features="bands+folded", n_realisations=12))
+    bands_only = _problem([rec])
+    nb = problem.n_bands
+    data = np.asarray(problem.data)[0]
+    assert data.shape == (nb + 3 * PHASE_BINS,)
+    np.testing.assert_array_equal(data[:nb], np.asarray(bands_only.data)[0])
+    z = np.array([s.z_of(s.center) if s.log_sd else 0.0 for s in problem.specs])
+    names = [s.name for s in problem.specs]
+    z[names.index("a")] = problem.specs[names.index("a")].z_of(truth["a"])
+    z[names.index("drag_torque")] = problem.specs[names.index("drag_torque")].z_of(
+        truth["drag_torque"]
+    )
+    per = forward.evaluate(problem, z[None])[0]  # (R, M, F)
+    kept = np.asarray(problem.mean_weights(per))[0] > 0
+    mean, sd = per[0, kept, nb:].mean(axis=0), per[0, kept, nb:].std(axis=0, ddof=1)
+    z_scores = (data[nb:] - mean) / np.sqrt(sd**2 + FOLDED_SD_FLOOR**2)
+    assert np.max(np.abs(z_scores)) < FOLDED_Z
+    # the statistics do vary over the cycle (else the check above would be empty)
+    assert np.ptp(data[nb : nb + PHASE_BINS]) > 0.2
+    # the regimes are told apart by the bands alone: folded statistics far off in one
+    # realisation leave it in the mean
+    moved = per.copy()
+    moved[0, 0, nb:] += 10.0
+    np.testing.assert_array_equal(problem.mean_weights(moved), problem.mean_weights(per))

@@ -259,6 +259,14 @@ def simulate(**o) -> None:
     "--drive", type=click.Choice(["measured", "commanded"]), default="measured", show_default=True
 )
 @click.option(
+    "--features",
+    type=click.Choice(["bands", "bands+folded"]),
+    default="bands",
+    show_default=True,
+    help="What the fit compares: the band PSDs, or those and the drive-cycle-folded "
+    "statistics of Δθ* (FitOptions.features).",
+)
+@click.option(
     "--quick",
     is_flag=True,
     help="A rough first look, several times faster, with wider intervals (FitOptions.quick).",
@@ -268,7 +276,18 @@ def simulate(**o) -> None:
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
 @_clean_errors
 def identify(
-    files, output, plot_dir, seed, realisations, starts, drive, quick, report_file, priors, quiet
+    files,
+    output,
+    plot_dir,
+    seed,
+    realisations,
+    starts,
+    drive,
+    features,
+    quick,
+    report_file,
+    priors,
+    quiet,
 ) -> None:
     """Fit a, T_b and the viscosity to one recording, or jointly to several of one pair
     (e.g. a backlash sweep; under several lubrications each gets its own a[LUBRICATION])."""
@@ -281,7 +300,11 @@ def identify(
     given = {"n_realisations": realisations, "n_starts": starts}
     make = FitOptions.quick if quick else FitOptions
     options = make(
-        seed=seed, drive=drive, priors=_priors(priors), **{k: v for k, v in given.items() if v}
+        seed=seed,
+        drive=drive,
+        features=features,
+        priors=_priors(priors),
+        **{k: v for k, v in given.items() if v},
     )
     result = run(recordings, options, progress=_progress(quiet))
     _emit(

@@ -105,10 +105,11 @@ def ensemble_mean(features, threshold: float | None, target=None):
     """Mean features of the regime kept (see :func:`regime_weights`; with ``target``, the
     recording's): (..., B); numpy for concrete features, like :func:`regime_weights`."""
     f = array_namespace(features, target).asarray(features)
-    return _weighted_mean(f, regime_weights(f, threshold, target=target))
+    return weighted_mean(f, regime_weights(f, threshold, target=target))
 
 
-def _weighted_mean(f, w):
+def weighted_mean(f, w):
+    """Mean of features ``f`` (..., n, F) over the realisations, weighted by ``w`` (..., n)."""
     return (w[..., None] * f).sum(axis=-2) / w.sum(axis=-1)[..., None]
 
 
@@ -164,6 +165,7 @@ def band_sigma(
     offsets: np.ndarray | None = None,
     threshold: float | None = None,
     target: np.ndarray | None = None,
+    n_bands: int | None = None,
 ) -> jnp.ndarray:
     """Per-band σ of the residual (data − mean of m), floored: ``s_run² (1 + 1/m)`` plus
     ``(floor_sd · φ)²``, φ the share of the quantisation floor in the band's mean PSD, plus
@@ -176,14 +178,20 @@ def band_sigma(
     ``offsets`` (n, q) are the realisations' dither offsets: the run-to-run spread s_run is
     then that of :func:`chaotic_part`, without the dither's share; with ``threshold`` it is
     the spread of the common regime (:func:`regime_weights`), or with ``target`` (R, B) of
-    the recordings' own regimes.
+    the recordings' own regimes. ``n_bands`` (default all) says how many leading features
+    are log band PSDs: the regimes are told apart by those, and only those get the
+    quantisation floor's term; the others (e.g. drive-cycle-folded statistics) get the
+    rest alike.
     """
     ens = np.asarray(ens)
-    weights = np.asarray(regime_weights(ens, threshold, target=target))
+    nb = ens.shape[-1] if n_bands is None else n_bands
+    bands_target = None if target is None else np.asarray(target)[..., :nb]
+    weights = np.asarray(regime_weights(ens[..., :nb], threshold, target=bands_target))
     dev, dof = chaotic_part(ens, offsets, weights)
     var = np.sum(dev**2, axis=1) / dof[:, None] * (1.0 + 1.0 / m)
-    mean = _weighted_mean(ens, weights)
-    share = np.asarray(noise_floor)[:, None] / 10.0**mean
+    mean = weighted_mean(ens, weights)
+    share = np.zeros_like(mean)
+    share[:, :nb] = np.asarray(noise_floor)[:, None] / 10.0 ** mean[:, :nb]
     var = var + (floor_sd * np.clip(share, 0.0, 1.0)) ** 2 + discrepancy**2
     return jnp.asarray(np.sqrt(np.maximum(var, floor**2)))
 

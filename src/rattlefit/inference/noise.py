@@ -15,7 +15,7 @@ import dataclasses
 import numpy as np
 
 from ..features import ensemble
-from ..features.ensemble import chaotic_part, regime_weights, shrunk_correlation
+from ..features.ensemble import chaotic_part, shrunk_correlation
 from .forward import evaluate
 from .options import FitOptions
 from .problem import Problem, release_states
@@ -58,8 +58,7 @@ def noise_model(problem: Problem, per: np.ndarray, r_data: np.ndarray, dof_rec: 
     """:class:`NoiseModel` from the realisations ``per`` (R, n, B) at the optimum, whose
     standardised data rows (in units of ``problem.sigma``) are ``r_data`` (R·B,)."""
     n_rec, n_band = np.asarray(problem.data).shape
-    target = problem.regime_target()
-    kept = np.asarray(regime_weights(per, problem.regime_threshold, target=target)) > 0
+    kept = np.asarray(problem.mean_weights(per)) > 0
     chaos, nu = chaotic_part(per, problem.dither_offsets(per.shape[1]), kept)
     whiten = np.zeros((n_rec * n_band, n_rec * n_band))
     for k in range(n_rec):
@@ -91,17 +90,25 @@ def band_sigma(problem: Problem, options: FitOptions, ens) -> np.ndarray:
         offsets=problem.dither_offsets(ens.shape[1]),
         threshold=problem.regime_threshold,
         target=problem.regime_target(),
+        n_bands=problem.n_bands,
     )
 
 
 def synthetic_cost(problem: Problem, options: FitOptions, noise: NoiseModel, per, z) -> float:
-    """The profile stage's cost at ``z`` from its realisations ``per`` (R, n, B): a Gaussian
+    """The profile stage's cost at ``z`` from its realisations ``per`` (R, n, F): a Gaussian
     synthetic likelihood (Wood 2010) with the point's own band spread ``s``,
     ``noise.quadratic((d − mean) / s) + 2 Σ log s + prior rows²``, so that a value where rattle
     wanders between attractors is neither favoured by a spread estimated elsewhere nor excused
     by a wide one (the log-determinant term).
+
+    Features after the bands (the drive-cycle-folded statistics) keep the noise model's
+    spread and add no log-determinant: they are bounded shares and positions whose spread,
+    re-estimated at each point from its realisations, would be the largest part of a profile's
+    noise.
     """
-    sig = np.asarray(band_sigma(problem, options, per))
+    nb = problem.n_bands
+    sig = np.array(band_sigma(problem, options, per))
+    sig[:, nb:] = np.asarray(noise.sigma)[:, nb:]
     r = ((np.asarray(problem.data) - np.asarray(problem.mean_of(per))) / sig).reshape(-1)
     prior = problem.prior_rows(np.asarray(z))
-    return float(noise.quadratic(r) + 2 * np.sum(np.log(sig)) + np.sum(prior**2))
+    return float(noise.quadratic(r) + 2 * np.sum(np.log(sig[:, :nb])) + np.sum(prior**2))

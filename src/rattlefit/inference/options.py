@@ -34,6 +34,10 @@ def _check_choice(group: str, name: str, value: Any, allowed: tuple) -> None:
     )
 
 
+#: The feature sets a fit can compare (``EnsembleOptions.features``).
+FEATURE_SETS = ("bands", "bands+folded")
+
+
 @dataclasses.dataclass(frozen=True)
 class EnsembleOptions:
     """How each evaluation simulates the recordings and averages its realisations.
@@ -61,6 +65,10 @@ class EnsembleOptions:
         (eq. 8's white quantisation floor added to the PSD).
     burn_in : simulated seconds discarded before the features, as in
         :func:`~rattlefit.simulation.solve.simulate`. Default 0.5.
+    features : what a recording and each simulation are compared by: ``"bands"`` (the log
+        band PSDs of Δθ*) or ``"bands+folded"`` (those, then the drive-cycle-folded
+        statistics of :mod:`rattlefit.features.folded`, each with its ensemble spread and
+        correlations like a band). Default ``"bands"``.
     """
 
     n_realisations: int = 6
@@ -73,6 +81,7 @@ class EnsembleOptions:
     drive: str = "measured"
     quantisation: str = "encoders"
     burn_in: float = 0.5
+    features: str = "bands"
 
     def __post_init__(self):
         for name in ("n_realisations", "n_noise_realisations", "n_covariance_realisations"):
@@ -84,6 +93,7 @@ class EnsembleOptions:
         _check_choice("ensemble", "regime", self.regime, ("recording", "common"))
         _check_choice("ensemble", "drive", self.drive, ("measured", "commanded"))
         _check_choice("ensemble", "quantisation", self.quantisation, ("encoders", "white"))
+        _check_choice("ensemble", "features", self.features, FEATURE_SETS)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -247,6 +257,7 @@ FLAT_FIELDS: dict[str, tuple[str, str]] = {
     "dither": ("ensemble", "dither"),
     "regime_threshold": ("ensemble", "regime_threshold"),
     "regime": ("ensemble", "regime"),
+    "features": ("ensemble", "features"),
     "priors": ("", "priors"),
 }
 

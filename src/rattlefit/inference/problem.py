@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import RattlefitError
-from ..features.ensemble import ensemble_mean, regime_weights
+from ..features.ensemble import regime_weights, weighted_mean
 from ..features.folded import cycle_phase, folded_statistics
 from ..features.spectra import spectral_features
 from ..io.recording import Recording
@@ -84,6 +84,11 @@ class Problem(eqx.Module):
     @property
     def n_rec(self) -> int:
         return self.y0.shape[0]
+
+    @property
+    def n_bands(self) -> int:
+        """B, the number of band features: the first B of every feature vector."""
+        return len(self.bands.centers)
 
     def params_for(self, z, r, dither):
         """RattleParams of recording r from the unconstrained vector z (log-dithered)."""
@@ -189,19 +194,23 @@ class Problem(eqx.Module):
         return map_blocks(block, rows)
 
     def regime_target(self):
-        """The features whose regime the ensemble statistics describe (``FitOptions.regime``):
-        the recordings' (R, B), or None for the common regime."""
-        return self.data if self.recording_regime else None
+        """The band features whose regime the ensemble statistics describe
+        (``FitOptions.regime``): the recordings' (R, B), or None for the common regime."""
+        return self.data[..., : self.n_bands] if self.recording_regime else None
 
     def mean_of(self, features):
         """Mean features of the realisations (second-last axis) in the regime kept: the
-        recording's own (:func:`~rattlefit.features.ensemble.regime_weights`), or the common one."""
-        return ensemble_mean(features, self.regime_threshold, self.regime_target())
+        recording's own (:func:`~rattlefit.features.ensemble.regime_weights`), or the common
+        one; the regimes are told apart by the band features."""
+        f = array_namespace(features, self.data).asarray(features)
+        return weighted_mean(f, self.mean_weights(f))
 
     def mean_weights(self, features):
-        """The weights (..., M) of :meth:`mean_of`: 1 for the realisations of band features
-        ``features`` (..., M, B) in the regime kept, 0 for the others."""
-        return regime_weights(features, self.regime_threshold, target=self.regime_target())
+        """The weights (..., M) of :meth:`mean_of`: 1 for the realisations of features
+        ``features`` (..., M, F) whose bands (the first B) are in the regime kept, 0 for the
+        others."""
+        bands = features[..., : self.n_bands]
+        return regime_weights(bands, self.regime_threshold, target=self.regime_target())
 
     def prior_rows(self, z):
         """The residual's prior rows at ``z``: ``(log v − log center) / log_sd`` of every
@@ -292,7 +301,10 @@ def build_problem(
     data = []
     for rig in rigs:
         rm = rig.recording.relative_motion[:n]
-        data.append(np.asarray(spectral_features(rm, rig.bands)))
+        f = np.asarray(spectral_features(rm, rig.bands))
+        if options.features == "bands+folded":
+            f = np.concatenate([f, rig.folded(n)])
+        data.append(f)
     specs = default_specs(rigs, options.priors)
     unused = sorted(set(options.priors) - {s.name for s in specs})
     if unused:  # e.g. "a" in a fit across lubrications, or a backlash beyond the files
@@ -328,7 +340,7 @@ def build_problem(
         floors=jnp.asarray([r.noise_floor for r in rigs]),
         viscosities=jnp.asarray([r.viscosity for r in rigs]),
         data=jnp.asarray(np.stack(data)),
-        sigma=jnp.asarray(np.ones((len(rigs), len(first.bands.centers)))),
+        sigma=jnp.asarray(np.ones((len(rigs), data[0].size))),
         specs=specs,
         bands=first.bands,
         quantise=options.quantisation == "encoders",
@@ -336,6 +348,7 @@ def build_problem(
         recording_regime=options.regime == "recording",
         static=static,
         films=films,
+        statistics=options.features,
     )
     return problem, rigs
 

@@ -82,8 +82,10 @@ class FitResult:
     options : the :class:`~rattlefit.inference.options.FitOptions` used.
     z : (P,) the optimum in the unconstrained coordinates.
     covariance_z : (P, P) Laplace covariance in z.
-    measured_features, fitted_features, sigma : R arrays (B,): the measured log10 band PSDs,
-        the model's mean at the optimum and each band's standard deviation.
+    measured_features, fitted_features, sigma : R arrays (F,): the measured features, the
+        model's mean at the optimum and each feature's standard deviation; the first B are
+        the log10 band PSDs, any further ones the drive-cycle-folded statistics
+        (``FitOptions.features``).
     band_centers : (B,) band centre frequencies, Hz.
     map_params : R dicts of the :class:`~rattlefit.physics.model.RattleParams` at the optimum.
     chi2_recordings : (R,) each recording's χ² at the optimum.
@@ -173,6 +175,10 @@ class FitResult:
             stiffness_scale=v["stiffness_scale"],
         )
 
+    def bands_of(self, features) -> list[float]:
+        """The band part (the first B) of one recording's feature vector, as a list."""
+        return np.asarray(features)[: len(self.band_centers)].tolist()
+
     def to_json(self) -> dict:
         """The ``--output`` document: parameters (SI), fit diagnostics and the spectra
         (log10 band PSDs of Δθ*, rad²/Hz, per recording: measured, fitted mean, σ)."""
@@ -201,9 +207,9 @@ class FitResult:
             },
             "spectra": {
                 "band_centers_hz": np.asarray(self.band_centers).tolist(),
-                "measured": [np.asarray(f).tolist() for f in self.measured_features],
-                "fitted": [np.asarray(f).tolist() for f in self.fitted_features],
-                "sigma": [np.asarray(s).tolist() for s in self.sigma],
+                "measured": [self.bands_of(f) for f in self.measured_features],
+                "fitted": [self.bands_of(f) for f in self.fitted_features],
+                "sigma": [self.bands_of(s) for s in self.sigma],
             },
         }
 

@@ -80,14 +80,12 @@ def plot_fit(result: FitResult, recordings: list[Recording], directory: str | Pa
             f[1:], simulated[1:], color="C1", lw=0.8, alpha=0.7, label="one fitted realisation"
         )
         c = result.band_centers
-        err = 2 * result.sigma[k]
+        err = 2 * np.asarray(result.bands_of(result.sigma[k]))
+        measured_bands = 10 ** np.asarray(result.bands_of(result.measured_features[k]))
         ax1.errorbar(
             c,
-            10 ** result.measured_features[k],
-            yerr=[
-                10 ** result.measured_features[k] * (1 - 10**-err),
-                10 ** result.measured_features[k] * (10**err - 1),
-            ],
+            measured_bands,
+            yerr=[measured_bands * (1 - 10**-err), measured_bands * (10**err - 1)],
             fmt="o",
             ms=3,
             color="k",
@@ -95,7 +93,7 @@ def plot_fit(result: FitResult, recordings: list[Recording], directory: str | Pa
         )
         ax1.plot(
             c,
-            10 ** result.fitted_features[k],
+            10 ** np.asarray(result.bands_of(result.fitted_features[k])),
             "s-",
             ms=3,
             color="C0",

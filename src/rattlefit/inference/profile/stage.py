@@ -76,11 +76,12 @@ class ProfileStage:
 def monte_carlo_sd(lap: Laplace, n_cov: int, dof_rec: float) -> float:
     """Standard deviation of the Monte Carlo noise of a difference of two costs of ``n_cov``
     realisations: each cost varies by ≈ 4χ²/(n+1) from the mean features (in the inflated
-    units) and ≈ 2B/ν from the log-spread term (ν the spread's degrees of freedom)."""
+    units) and ≈ 2B/ν from the log-spread term of the R·B bands (ν the spread's degrees of
+    freedom; :func:`~rattlefit.inference.noise.synthetic_cost`)."""
     chi2_rec = lap.noise.chi2_recordings
     inflation = np.maximum(1.0, chi2_rec / dof_rec)
     var_cost = np.sum(4.0 * np.maximum(chi2_rec, dof_rec) / (n_cov + 1) / inflation**2)
-    var_cost += 2.0 * np.asarray(lap.problem.data).size / lap.noise.sigma_dof
+    var_cost += 2.0 * lap.problem.n_rec * lap.problem.n_bands / lap.noise.sigma_dof
     return math.sqrt(2.0 * var_cost)
 
 
