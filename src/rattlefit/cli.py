@@ -271,6 +271,12 @@ def simulate(**o) -> None:
     is_flag=True,
     help="A rough first look, several times faster, with wider intervals (FitOptions.quick).",
 )
+@click.option(
+    "--suggest",
+    is_flag=True,
+    help="Also predict which one more recording (longer, another centre distance, "
+    "fluctuation, frequency or lubrication) would narrow the intervals most (a minute or two).",
+)
 @_report_option("the fit")
 @_prior_option
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
@@ -285,6 +291,7 @@ def identify(
     drive,
     features,
     quick,
+    suggest,
     report_file,
     priors,
     quiet,
@@ -307,9 +314,17 @@ def identify(
         **{k: v for k, v in given.items() if v},
     )
     result = run(recordings, options, progress=_progress(quiet))
+    text, doc = format_table(result), result.to_json()
+    if suggest:
+        from .inference.design import suggest as plan
+        from .report import format_suggestions
+
+        planned = plan(result, recordings, seed=seed, progress=_progress(quiet))
+        text += "\n\n" + format_suggestions(planned)
+        doc["suggest"] = [r.to_json() for r in planned]
     _emit(
-        format_table(result),
-        result.to_json(),
+        text,
+        doc,
         output,
         plot_dir,
         lambda d: plot_fit(result, recordings, d),

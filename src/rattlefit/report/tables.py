@@ -235,3 +235,35 @@ def format_diagnosis(diag: Diagnosis) -> str:
     lines += [f"warning: {w}" for w in diag.warnings]
     lines.append(f"seed {diag.seed}; {diag.wall_time:.0f} s")
     return "\n".join(lines)
+
+
+#: Columns of :func:`format_suggestions`: the films first, then the drag torque and the
+#: viscosity, the parameters a test is planned for.
+PLANNED_COLUMNS = ("drag_torque", "viscosity_scale")
+
+
+def format_suggestions(rows) -> str:
+    """:func:`~rattlefit.inference.design.suggest`'s table: the predicted 95 % interval
+    factor of each film half-length, the drag torque and the viscosity now and with each
+    candidate recording added."""
+    films = [k for k in rows[0].factors if k.startswith("a[")]
+    cols = [*films, *PLANNED_COLUMNS]
+    head = ("with one more recording", *(c.replace("_scale", "") for c in cols))
+    table = [head]
+    for r in rows:
+        cells = [
+            "—"
+            if not np.isfinite(r.factors.get(c, np.inf)) or r.factors[c] > 1e3
+            else f"×{r.factors[c]:.2f}"
+            for c in cols
+        ]
+        table.append(("(this fit alone)" if r.label == "now" else f"+ {r.label}", *cells))
+    widths = [max(len(row[i]) for row in table) for i in range(len(head))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)) for row in table]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    note = (
+        "predicted 95 % interval factors at the fitted point (Fisher information of simulated "
+        "realisations; local and Gaussian, so a fit's profile intervals can be wider); "
+        "— : not bounded"
+    )
+    return "\n".join([*lines, note])
