@@ -467,3 +467,12 @@ def test_a_drive_cycle_miss_is_where_a_statistic_passes_the_family_wise_threshol
     json.dumps(gap.as_dict())
     within = CycleGap(phases, np.where(measured > 0, 0.0, measured), model, sd, threshold, 1.0)
     assert not within.significant and within.missed() == [] and within.phrase() == ""
+
+
+def test_a_fit_to_more_than_the_bands_is_refused_at_once():
+    # the judgement and its figures are the bands': a fit that compared the folded statistics
+    # too must be refused before any simulation, naming the option
+    rec = rf.Recording.__new__(rf.Recording)  # never read: the refusal comes first
+    options = DiagnoseOptions(fit=FitOptions(features="bands+folded"))
+    with pytest.raises(RattlefitError, match="FitOptions.features.*bands\\+folded"):
+        diagnose([rec], options)

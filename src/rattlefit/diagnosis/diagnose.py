@@ -334,6 +334,18 @@ def identified(recordings, options: DiagnoseOptions, baseline: FitResult | None,
     return baseline
 
 
+def require_band_fit(options: DiagnoseOptions, baseline: FitResult | None) -> None:
+    """Raise :class:`~rattlefit.errors.RattlefitError` unless the fit the diagnosis starts
+    from (``baseline``, else ``options.fit``) compares the band features alone: the
+    judgement, its thresholds and its figures are those of the bands."""
+    fit_options = options.fit if baseline is None else baseline.options
+    if fit_options.features != "bands":
+        raise RattlefitError(
+            f"diagnose: FitOptions.features: the diagnosis judges the band features, but the "
+            f"fit compares {fit_options.features!r}; identify with features='bands'"
+        )
+
+
 def model_free(recordings, options: DiagnoseOptions, say):
     """The model-free tests of ``recordings`` (:func:`~rattlefit.diagnosis.evidence.findings`)
     and the effects the significant ones point to."""
@@ -372,9 +384,11 @@ def diagnose(
     ``options.fit`` when not given; when given, its own options and seed are used, so that
     the diagnosis sees the realisations it was fitted with). ``progress`` receives one-line
     messages. Every realisation is seeded from the fit's seed. Raises
-    :class:`~rattlefit.errors.RattlefitError` when ``baseline`` is of other recordings.
+    :class:`~rattlefit.errors.RattlefitError` when ``baseline`` is of other recordings or
+    the fit compares more than the bands (``FitOptions.features``).
     """
     options = options or DiagnoseOptions()
+    require_band_fit(options, baseline)
     t_start = time.perf_counter()
     say = stamped(progress, t_start)  # progress, stamped with the time since the start
     platform = platform_info()

@@ -200,7 +200,8 @@ class Posterior:
         pick = arviz_io.predictive_pick(len(kept), n_draws, seed)
         problem, _, _ = problem_from(recordings, self.fit_options)
         draws = np.asarray(problem.mean_of(evaluate(problem, kept[pick])))
-        return draws, np.asarray(problem.data), problem.bands.centers
+        nb = problem.n_bands  # the bands only, whatever else the fit compared
+        return draws[..., :nb], np.asarray(problem.data)[:, :nb], problem.bands.centers
 
     def intervals(self, level: float = 0.95) -> dict[str, tuple[float, float, float]]:
         """name → (median, lower, upper) of the central credible interval at ``level``."""
