@@ -474,5 +474,5 @@ def test_a_fit_to_more_than_the_bands_is_refused_at_once():
     # too must be refused before any simulation, naming the option
     rec = rf.Recording.__new__(rf.Recording)  # never read: the refusal comes first
     options = DiagnoseOptions(fit=FitOptions(features="bands+folded"))
-    with pytest.raises(RattlefitError, match="FitOptions.features.*bands\\+folded"):
+    with pytest.raises(RattlefitError, match=r"FitOptions.features.*bands\+folded"):
         diagnose([rec], options)
