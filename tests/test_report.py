@@ -452,3 +452,24 @@ def test_report_renders_in_a_headless_browser(tmp_path):
     # not blank: dark text and figure lines on a light page, over much of its height
     dark_rows = np.flatnonzero((pixels < 128).any(axis=1))
     assert pixels.std() > 10 and dark_rows.size > 500 and dark_rows.max() > 1500
+
+
+def test_the_report_shows_what_to_record_next_when_the_fit_has_it():
+    # identify --suggest's table, written by hand: a row without a bound reads "—", and a
+    # fit document without it has no such section
+    from rattlefit.report import html_report
+
+    fit = _handmade_fit()
+    assert "What to record next" not in html_report(fit=fit)
+    fit["suggest"] = [
+        {"recording": "now", "factors": {"a[boundary]": 5.2, "drag_torque": None}},
+        {
+            "recording": "an oil-jet companion",
+            "factors": {"a[boundary]": 1.91, "drag_torque": 1.32, "viscosity_scale": 1.11},
+        },
+    ]
+    page = _check_self_contained(html_report(fit=fit))
+    text = " ".join(page.text)
+    assert "What to record next" in text
+    assert "+ an oil-jet companion" in text and "×1.32" in text and "×1.11" in text
+    assert "this fit alone" in text and "×5.20" in text and "—" in text

@@ -329,7 +329,7 @@ def identify(
         plot_dir,
         lambda d: plot_fit(result, recordings, d),
     )
-    _write_report(report_file, fit=result.to_json(), recordings=recordings)
+    _write_report(report_file, fit=doc, recordings=recordings)
 
 
 @main.command()

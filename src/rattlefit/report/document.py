@@ -147,6 +147,35 @@ def _parameter_section(fit: dict, lubrications: list[str]) -> str:
     )
 
 
+def _suggest_section(fit: dict) -> str:
+    """The table of ``identify --suggest`` (the fit document's ``suggest``), if there is one:
+    each candidate's predicted 95 % factors."""
+    rows = fit.get("suggest")
+    if not rows:
+        return ""
+    films = [k for k in rows[0]["factors"] if k.startswith("a[")]
+    cols = [*films, "drag_torque", "viscosity_scale"]
+
+    def cell(v) -> str:
+        return "—" if v is None or v > 1e3 else f"×{v:.2f}"
+
+    head = "".join(f"<th>{escape(c.replace('_scale', ''))}</th>" for c in cols)
+    body = "".join(
+        f"<tr><td>{escape('this fit alone' if r['recording'] == 'now' else '+ ' + r['recording'])}"
+        "</td>"
+        + "".join(f'<td class="num">{cell(r["factors"].get(c))}</td>' for c in cols)
+        + "</tr>"
+        for r in rows
+    )
+    return (
+        "<h2>What to record next</h2><p>Predicted 95 % interval factors at the fitted point "
+        "with one more recording (Fisher information of simulated realisations; local and "
+        "Gaussian, so an actual fit's intervals can be wider; — : not bounded).</p>"
+        f'<table class="parameters"><tr><th>with one more recording</th>{head}</tr>{body}'
+        "</table>"
+    )
+
+
 def _spectra_section(fit: dict, recordings: list[Recording], paths: list[str]) -> str:
     parts = [
         "<h2>Measured against fitted</h2>",
@@ -398,6 +427,7 @@ def html_report(
         f"{fit['fit'].get('seed')}.</p>",
         _summary_section(recs, paths),
         _parameter_section(fit, lubrications),
+        _suggest_section(fit),
         _spectra_section(fit, recs, paths),
         _posterior_section(posterior, idata, paths),
         _diagnosis_section(diagnosis, paths, recs),
