@@ -10,6 +10,7 @@ import pytest
 import rattlefit as rf
 from rattlefit.physics.model import equivalent_viscosity, squeeze_coefficient
 
+LONG_SEED = 7  # the 30 s recording of the headline point
 STILL = rf.Drive(0.0, 8.0, [0.0], [0.0])  # θ1 ≡ 0: no forcing, frozen mesh stiffness
 
 
@@ -278,3 +279,19 @@ def test_effects_plug_in(pair2):
     shifted = rf.simulate(base.with_effects(Offset(d)), p, drive, y0=[-c + d, 0.0], **opts)
     plain = rf.simulate(base, p, drive, y0=[-c, 0.0], **opts)
     np.testing.assert_allclose(np.asarray(shifted.q) - d, np.asarray(plain.q), atol=1e-11)
+
+
+def test_a_long_recording_gets_a_step_budget_in_proportion():
+    # the paper's headline point simulated for 30 s at synthesize's tolerance: a fixed budget
+    # of 200,000 steps (enough for 3 s) made it fail; the budget grows with the simulated time
+    from rattlefit.io.recording import OperatingPoint
+    from rattlefit.simulation.solve import STEPS_PER_3_5_S, step_budget
+    from rattlefit.simulation.synthetic import synthesize
+
+    assert step_budget(3.0, 0.5) == STEPS_PER_3_5_S
+    assert step_budget(30.0, 0.5) == pytest.approx(STEPS_PER_3_5_S * 30.5 / 3.5, abs=1)
+    g = rf.table2_pair("II", center_distance_mm=65.6)
+    op = OperatingPoint("boundary", 20.0, 52.36, 10.472, 16.0)
+    p = rf.RattleParams(0.085e-3, 0.025, 0.4942, g.backlash)
+    rec, _ = synthesize(g, op, p, seed=LONG_SEED, duration=30.0)
+    assert rec.n_samples == 300_000

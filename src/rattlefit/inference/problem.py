@@ -40,9 +40,6 @@ from .options import FitOptions
 from .parameters import default_specs, films_of
 from .rig import RigSetup, setup
 
-#: Step limit of each simulation of the fit.
-MAX_STEPS = 200_000
-
 
 def _stack(trees):
     return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *trees)
@@ -325,7 +322,7 @@ def build_problem(
                 absolute_tolerances(
                     options.rtol, [r.recording.operating.lubrication for r in rigs]
                 ),
-                MAX_STEPS,
+                None,  # the step budget scales with the simulated time (step_budget)
                 "forward",
             ).items()
         )

@@ -11,6 +11,7 @@ solver's result code, and :func:`raise_if_failed` turns a failure into a
 from __future__ import annotations
 
 import functools
+import math
 
 import diffrax
 import equinox as eqx
@@ -200,7 +201,7 @@ def simulate(
     burn_in: float = 0.5,
     rtol: float = 1e-6,
     atol: float | tuple[float, float] = 1e-9,
-    max_steps: int = 200_000,
+    max_steps: int | None = None,
     sensitivity: str = "forward",
     y0: Float[Array, " 2"] | None = None,
 ) -> Solution:
@@ -218,6 +219,8 @@ def simulate(
     rtol, atol : tolerances of the PID step-size controller; ``atol`` applies to q (m) and
         v (m/s) alike, or is a pair (q, v) (:func:`absolute_tolerances` gives the fit's).
     max_steps : solver step budget; exceeding it is a failure reported in ``result``.
+        Default :func:`step_budget` (200,000 up to 3.5 s simulated, proportionally more
+        beyond).
     sensitivity : ``"forward"`` (forward-mode derivatives, for Jacobians) or ``"reverse"``.
     y0 : initial (q, v) at ``-burn_in`` (effects with a state of their own start it at zero),
         or the full state; default at rest on the drive flank.
@@ -270,6 +273,18 @@ def _atol_option(atol) -> float | tuple[float, ...]:
     return atol
 
 
+#: Solver steps allowed per 3.5 s simulated (a 3 s recording and its burn-in); longer
+#: simulations get a proportionally larger budget (:func:`step_budget`).
+STEPS_PER_3_5_S = 200_000
+
+
+def step_budget(duration: float, burn_in: float) -> int:
+    """The default step budget of a simulation of ``duration`` s after ``burn_in`` s:
+    :data:`STEPS_PER_3_5_S`, scaled up with the simulated time beyond 3.5 s, so that a 30 s
+    recording is not refused for the steps a 3 s one may take."""
+    return math.ceil(STEPS_PER_3_5_S * max(1.0, (duration + burn_in) / 3.5))
+
+
 def static_options(duration, sample_rate, burn_in, rtol, atol, max_steps, sensitivity):
     """The solver options of :func:`simulate` as the hashable keyword arguments of its compiled
     core: ``n_samples = round(duration · sample_rate)`` and the rest as Python floats/ints
@@ -284,7 +299,7 @@ def static_options(duration, sample_rate, burn_in, rtol, atol, max_steps, sensit
         burn_in=float(burn_in),
         rtol=float(rtol),
         atol=_atol_option(atol),
-        max_steps=int(max_steps),
+        max_steps=int(step_budget(duration, burn_in) if max_steps is None else max_steps),
         sensitivity=sensitivity,
     )
 
@@ -301,7 +316,7 @@ def simulate_batch(
     burn_in: float = 0.5,
     rtol: float = 1e-6,
     atol: float | tuple[float, float] = 1e-9,
-    max_steps: int = 200_000,
+    max_steps: int | None = None,
     sensitivity: str = "forward",
 ) -> Solution:
     """:func:`simulate` for B parameter sets at once (one compiled call).
