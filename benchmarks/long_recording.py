@@ -11,7 +11,7 @@ bound runs to the end of the range), the ratio of the 3 s width to the 30 s one 
 asks for ≥ 2), whether the truth is inside, and the wall times.
 
     python benchmarks/long_recording.py [--from DIR] [--features bands,bands+folded]
-                                        [--json out.json]
+                                        [--pairs shared,rattlefit] [--json out.json]
 """
 
 from __future__ import annotations
@@ -91,9 +91,10 @@ def widths(doc: dict, truth: dict) -> dict:
 RANGE_LOW = {"a": 1e-6, "drag_torque": 2e-3, "viscosity": 1e-9}
 
 
-def study(directory: Path, feature_sets: list[str], say) -> list[dict]:
+def study(directory: Path, feature_sets: list[str], pairs: list[str], say) -> list[dict]:
     rows = []
-    for label, (short, long) in PAIRS.items():
+    for label in pairs:
+        short, long = PAIRS[label]
         long = long or synthetic_long(directory)
         for features in feature_sets:
             row = {"recordings": label, "features": features}
@@ -130,11 +131,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--from", dest="directory", default="benchmarks/results/raw/long")
     ap.add_argument("--features", default="bands,bands+folded")
+    ap.add_argument("--pairs", default=",".join(PAIRS), help="of: " + ", ".join(PAIRS))
     ap.add_argument("--json")
     args = ap.parse_args()
     directory = Path(args.directory)
     directory.mkdir(parents=True, exist_ok=True)
-    rows = study(directory, args.features.split(","), print)
+    pairs = args.pairs.split(",")
+    unknown = sorted(set(pairs) - set(PAIRS))
+    if unknown:
+        ap.error(f"--pairs: unknown {', '.join(unknown)} (of {', '.join(PAIRS)})")
+    rows = study(directory, args.features.split(","), pairs, print)
     if args.json:
         write_json(args.json, result_document(rows))
 
@@ -183,7 +189,9 @@ def result_document(rows: list[dict]) -> dict:
         if both
         else ("met for T_b; not for a (h_min's prior)" if t_b else "missed"),
         "measured": "rattlefit identify FILE [--features F] with the default options, seed 0; "
-        "a one-sided interval's log width runs to the end of the range",
+        "a one-sided interval's log width runs to the end of the range; pairs measured: "
+        + ", ".join(dict.fromkeys(r["recordings"] for r in rows))
+        + f" (of {', '.join(PAIRS)})",
         "command": "python benchmarks/long_recording.py --json OUT",
         "results": rows,
         "platform": platform_info(),
