@@ -134,7 +134,7 @@ def main() -> None:
     ap.add_argument("--pairs", default=",".join(PAIRS), help="of: " + ", ".join(PAIRS))
     ap.add_argument("--json")
     args = ap.parse_args()
-    directory = Path(args.directory)
+    directory = Path(args.directory).resolve()
     directory.mkdir(parents=True, exist_ok=True)
     pairs = args.pairs.split(",")
     unknown = sorted(set(pairs) - set(PAIRS))
