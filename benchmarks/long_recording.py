@@ -175,8 +175,8 @@ def result_document(rows: list[dict]) -> dict:
         for d in ("3s", "30s")
         for p in r[d]["parameters"].values()
     )
-    t_b = all(r["width_ratio"]["drag_torque"] >= 2 for r in rows)
-    both = all(min(r["width_ratio"]["drag_torque"], r["width_ratio"]["a"]) >= 2 for r in rows)
+    t_b = sum(r["width_ratio"]["drag_torque"] >= 2 for r in rows)
+    a = sum(r["width_ratio"]["a"] >= 2 for r in rows)
     return {
         "order": 12.6,
         "what": "what a 30 s recording pins against a 3 s one of the same point (pair II, "
@@ -186,8 +186,8 @@ def result_document(rows: list[dict]) -> dict:
         "aim": "intervals ≥ 2× narrower (log width) at 30 s; run time no faster-growing than "
         "the simulated time",
         "verdict": "met"
-        if both
-        else ("met for T_b; not for a (h_min's prior)" if t_b else "missed"),
+        if t_b == a == len(rows)
+        else f"T_b ≥ 2× narrower in {t_b} of {len(rows)}, a in {a} (a is held by h_min's prior)",
         "measured": "rattlefit identify FILE [--features F] with the default options, seed 0; "
         "a one-sided interval's log width runs to the end of the range; pairs measured: "
         + ", ".join(dict.fromkeys(r["recordings"] for r in rows))
