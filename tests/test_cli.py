@@ -284,3 +284,29 @@ def test_report_finds_recordings_beside_the_fit_and_writes_html(tmp_path):
     )
     assert result.exit_code == 2 and "gone.h5" in result.output
     assert not (tmp_path / "x.html").exists()
+
+
+def test_identify_suggest_adds_information_and_never_widens(tmp_path):
+    # information from one more recording adds to the fit's: no candidate may predict a
+    # wider interval than the fit alone for any parameter, the longer run of the same test
+    # narrows what the data inform, and the seed and realisations used are reported
+    out = tmp_path / "result.json"
+    path = DATA / "pairII_boundary_65.6_20pct_16Hz.h5"
+    args = ["identify", str(path), "--quick", "--starts", "4", "--suggest", "-q", "-o", str(out)]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    assert "with one more recording" in result.output and "seed 0" in result.output
+    plan = json.loads(out.read_text())["suggest"]
+    assert plan["seed"] == 0 and plan["realisations"] >= 2
+    now, *rest = plan["candidates"]
+    assert now["recording"] == "now" and len(rest) >= 6
+    inf = float("inf")
+    for row in rest:
+        for name, factor in now["factors"].items():
+            before = inf if factor is None else factor
+            after = inf if row["factors"][name] is None else row["factors"][name]
+            assert after <= before * (1 + 1e-9), (row["recording"], name, before, after)
+    longer = next(r for r in rest if "as long" in r["recording"])
+    bounded = [k for k, f in now["factors"].items() if f is not None]
+    assert any(longer["factors"][k] < now["factors"][k] * (1 - 1e-6) for k in bounded)
+    assert any("oil-jet companion" in r["recording"] for r in rest)

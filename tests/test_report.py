@@ -461,15 +461,20 @@ def test_the_report_shows_what_to_record_next_when_the_fit_has_it():
 
     fit = _handmade_fit()
     assert "What to record next" not in html_report(fit=fit)
-    fit["suggest"] = [
-        {"recording": "now", "factors": {"a[boundary]": 5.2, "drag_torque": None}},
-        {
-            "recording": "an oil-jet companion",
-            "factors": {"a[boundary]": 1.91, "drag_torque": 1.32, "viscosity_scale": 1.11},
-        },
-    ]
+    fit["suggest"] = {
+        "seed": 4,
+        "realisations": 24,
+        "candidates": [
+            {"recording": "now", "factors": {"a[boundary]": 5.2, "drag_torque": None}},
+            {
+                "recording": "an oil-jet companion",
+                "factors": {"a[boundary]": 1.91, "drag_torque": 1.32, "viscosity_scale": 1.11},
+            },
+        ],
+    }
     page = _check_self_contained(html_report(fit=fit))
     text = " ".join(page.text)
     assert "What to record next" in text
     assert "+ an oil-jet companion" in text and "×1.32" in text and "×1.11" in text
     assert "this fit alone" in text and "×5.20" in text and "—" in text
+    assert "seed 4" in text  # the randomness it used is reported

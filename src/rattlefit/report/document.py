@@ -150,9 +150,10 @@ def _parameter_section(fit: dict, lubrications: list[str]) -> str:
 def _suggest_section(fit: dict) -> str:
     """The table of ``identify --suggest`` (the fit document's ``suggest``), if there is one:
     each candidate's predicted 95 % factors."""
-    rows = fit.get("suggest")
-    if not rows:
+    plan = fit.get("suggest")
+    if not plan:
         return ""
+    rows = plan["candidates"]
     films = [k for k in rows[0]["factors"] if k.startswith("a[")]
     cols = [*films, "drag_torque", "viscosity_scale"]
 
@@ -169,8 +170,9 @@ def _suggest_section(fit: dict) -> str:
     )
     return (
         "<h2>What to record next</h2><p>Predicted 95 % interval factors at the fitted point "
-        "with one more recording (Fisher information of simulated realisations; local and "
-        "Gaussian, so an actual fit's intervals can be wider; — : not bounded).</p>"
+        f"with one more recording (Fisher information of {plan.get('realisations')} simulated "
+        f"realisations per point, seed {plan.get('seed')}; local and Gaussian, so an actual "
+        "fit's intervals can be wider; — : not bounded).</p>"
         f'<table class="parameters"><tr><th>with one more recording</th>{head}</tr>{body}'
         "</table>"
     )

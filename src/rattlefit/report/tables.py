@@ -242,10 +242,10 @@ def format_diagnosis(diag: Diagnosis) -> str:
 PLANNED_COLUMNS = ("drag_torque", "viscosity_scale")
 
 
-def format_suggestions(rows) -> str:
+def format_suggestions(rows, *, seed: int, realisations: int) -> str:
     """:func:`~rattlefit.inference.design.suggest`'s table: the predicted 95 % interval
     factor of each film half-length, the drag torque and the viscosity now and with each
-    candidate recording added."""
+    candidate recording added, and the ``seed`` and ``realisations`` per point it used."""
     films = [k for k in rows[0].factors if k.startswith("a[")]
     cols = [*films, *PLANNED_COLUMNS]
     head = ("with one more recording", *(c.replace("_scale", "") for c in cols))
@@ -262,8 +262,8 @@ def format_suggestions(rows) -> str:
     lines = ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)) for row in table]
     lines.insert(1, "  ".join("-" * w for w in widths))
     note = (
-        "predicted 95 % interval factors at the fitted point (Fisher information of simulated "
-        "realisations; local and Gaussian, so a fit's profile intervals can be wider); "
-        "— : not bounded"
+        "predicted 95 % interval factors at the fitted point (Fisher information of "
+        f"{realisations} simulated realisations per point, seed {seed}; local and Gaussian, so "
+        "a fit's profile intervals can be wider); — : not bounded"
     )
     return "\n".join([*lines, note])
