@@ -11,6 +11,7 @@ otherwise.
     python benchmarks/diagnose_study.py [--sets shared,clean,injected] [--full]
                                         [--only NAME ...] [--cases-dir DIR [--rows-only]]
                                         [--json out.json] [--quiet]
+                                        [--result README_RESULT.json --method-commit C]
 
 A full study takes hours: with ``--cases-dir`` each case's row is written there as it ends
 (``<name>.json``) and a case whose row is there is not run again, so an interrupted study
@@ -187,6 +188,45 @@ def summary(rows: list[dict]) -> dict:
     }
 
 
+def result_document(rows: list[dict], n_cases: int, method_commit: str) -> dict:
+    """The README result file (``benchmarks/results/diagnose_full_study.json``) of a full
+    study's ``rows`` out of ``n_cases`` selected, run on the diagnosis code of
+    ``method_commit``."""
+    result = summary(rows)
+    clean, effect = result["clean_cases"], result["effect_cases"]
+    enough = clean >= 20 and len(rows) == n_cases
+    fp_ok = result["false_positive_rate"] <= 0.05
+    right_ok = result["effect_right_rate"] >= 0.8
+    return {
+        "order": 11.6,
+        "what": "full `diagnose` (default options) on recordings rattlefit's fitted model did "
+        "not make: the shared independent recordings, the clean calibration set and the "
+        "injected set of benchmarks/diagnose_sets.py",
+        "summary": f"{len(rows)} of the {n_cases} cases so far (the study resumes from its "
+        f"committed rows): {result['false_positives']} of {clean} clean recordings got an "
+        f"effect verdict; {result['effect_right']} of {effect} effect cases right",
+        "aim": "≤ 5 % false positives on ≥ 20 clean recordings; ≥ 80 % of effect cases right",
+        "verdict": ("met" if fp_ok and right_ok else "missed")
+        if enough
+        else f"not yet measured: {clean} clean and {effect} effect cases of the {n_cases} run",
+        "measured": "python benchmarks/diagnose_study.py --full --sets shared,clean,injected "
+        "--cases-dir benchmarks/results/diagnose_cases (one row a case, fit seed 0, "
+        f"family-wise level 0.01), on the diagnosis code of commit {method_commit}; a row's "
+        "wall_s includes any time the study was paused or ran at low priority; rows may come "
+        "from several machines of one kind (platform: the one that summarised them)",
+        "command": "python benchmarks/diagnose_study.py --full --sets shared,clean,injected "
+        "--cases-dir benchmarks/results/diagnose_cases --rows-only --result OUT "
+        f"--method-commit {method_commit}",
+        "results": {**result, "cases": [{k: r[k] for k in ROW_KEYS if k in r} for r in rows]},
+        "platform": rf.reproducibility.platform_info(),
+        "commit": method_commit,
+    }
+
+
+#: What the result file keeps of each row.
+ROW_KEYS = ("name", "set", "expected", "verdict", "right", "wall_s")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sets", default="shared,clean,injected")
@@ -195,6 +235,8 @@ def main() -> None:
     ap.add_argument("--cases-dir", type=Path)
     ap.add_argument("--json")
     ap.add_argument("--quiet", action="store_true")
+    ap.add_argument("--result", help="also write the README result file (with --full)")
+    ap.add_argument("--method-commit", default="", help="the diagnosis code's commit")
     ap.add_argument(
         "--rows-only",
         action="store_true",
@@ -209,6 +251,7 @@ def main() -> None:
         cases = [c for c in cases if c["name"] in args.only]
     if args.cases_dir is not None:
         args.cases_dir.mkdir(parents=True, exist_ok=True)
+    n_selected = len(cases)
     if args.rows_only:
         if args.cases_dir is None:
             ap.error("--rows-only needs --cases-dir")
@@ -222,6 +265,10 @@ def main() -> None:
         write_json(
             args.json, {"mode": "full" if args.full else "model-free", **result, "cases": rows}
         )
+    if args.result:
+        if not args.full:
+            ap.error("--result describes a full study: add --full")
+        write_json(args.result, result_document(rows, n_selected, args.method_commit))
 
 
 if __name__ == "__main__":
