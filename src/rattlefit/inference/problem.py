@@ -73,9 +73,10 @@ class Problem(eqx.Module):
     #: extra effects whose fitted fields are specs named "<effect>.<field>" (diagnose); one
     #: compiled program holds them all, each at its absent end unless its fields move
     effects: tuple[Effect, ...] = ()
-    #: what each simulation is measured by: ``"bands"``, the log band PSDs (the fit's
-    #: features), or ``"bands+folded"``, those followed by the drive-cycle-folded statistics
-    #: of :mod:`rattlefit.features.folded` (what diagnose compares besides)
+    #: what each simulation is measured by: ``"bands"``, the log band PSDs, or
+    #: ``"bands+folded"``, those followed by the drive-cycle-folded statistics of
+    #: :mod:`rattlefit.features.folded` (``FitOptions.features``; diagnose's drive-cycle
+    #: comparison measures its fresh realisations so too); :attr:`data` holds the same
     statistics: str = eqx.field(static=True, default="bands")
 
     @property
