@@ -61,8 +61,8 @@ class Problem(eqx.Module):
     counts_per_rev: jax.Array  # (R,)
     floors: jax.Array  # (R,)
     viscosities: jax.Array  # (R,) catalogue μ at each recording's temperature
-    data: jax.Array  # (R, B) measured features
-    sigma: jax.Array  # (R, B)
+    data: jax.Array  # (R, F) measured features: B bands, then any folded statistics
+    sigma: jax.Array  # (R, F)
     specs: tuple = eqx.field(static=True)
     bands: object = eqx.field(static=True)
     quantise: bool = eqx.field(static=True)
