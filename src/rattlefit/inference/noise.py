@@ -26,11 +26,13 @@ class NoiseModel:
     """How the data rows are weighted, fixed at the optimum: the Laplace covariance, the
     profile scan and the posterior (:mod:`rattlefit.inference.posterior`) all use it.
 
-    sigma : (R, B) each band's standard deviation (log10): the run-to-run spread of one
-        recording's features plus the Monte Carlo error of an M-realisation mean, floored.
-    whiten : (R·B, R·B) block-diagonal inverse Cholesky factor of each recording's shrunk band
-        correlation (generalised least squares: chaotic excursions move many bands together).
-    row_scale : (R·B,) 1/√(inflation) of each recording's rows, the inflation being that
+    sigma : (R, F) each feature's standard deviation (log10 for a band): the run-to-run
+        spread of one recording's features plus the Monte Carlo error of an M-realisation
+        mean, floored. F is B bands, then any folded statistics (``FitOptions.features``).
+    whiten : (R·F, R·F) block-diagonal inverse Cholesky factor of each recording's shrunk
+        feature correlation (generalised least squares: chaotic excursions move many
+        features together).
+    row_scale : (R·F,) 1/√(inflation) of each recording's rows, the inflation being that
         recording's reduced χ² where it exceeds one (a Birge ratio per recording).
     chi2_recordings : (R,) each recording's χ² at the optimum, before inflation.
     sigma_dof : degrees of freedom of the spread estimate
