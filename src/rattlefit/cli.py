@@ -316,17 +316,13 @@ def identify(
     result = run(recordings, options, progress=_progress(quiet))
     text, doc = format_table(result), result.to_json()
     if suggest:
-        from .inference.design import DESIGN_REALISATIONS
+        from .inference.design import DESIGN_REALISATIONS, plan_document
         from .inference.design import suggest as plan
         from .report import format_suggestions
 
         planned = plan(result, recordings, seed=seed, progress=_progress(quiet))
-        text += "\n\n" + format_suggestions(planned, seed=seed, realisations=DESIGN_REALISATIONS)
-        doc["suggest"] = {
-            "seed": seed,
-            "realisations": DESIGN_REALISATIONS,
-            "candidates": [r.to_json() for r in planned],
-        }
+        doc["suggest"] = plan_document(planned, seed=seed, realisations=DESIGN_REALISATIONS)
+        text += "\n\n" + format_suggestions(doc["suggest"])
     _emit(
         text,
         doc,

@@ -105,12 +105,11 @@ class CycleGap:
         }
 
 
-def regime_kept(trial: Trial, bands: np.ndarray) -> np.ndarray:
-    """(R, M) which realisations are in each recording's regime, judged by their band
-    features ``bands`` (R, M, B) as the fit's mean judges them; all when fewer than
+def regime_kept(trial: Trial, features: np.ndarray) -> np.ndarray:
+    """(R, M) which realisations are in each recording's regime, judged by the band part of
+    their ``features`` (R, M, F) as the fit's mean judges them; all when fewer than
     :data:`MIN_KEPT`."""
-    problem = trial.problem
-    w = np.asarray(problem.mean_weights(bands)) > 0
+    w = np.asarray(trial.problem.mean_weights(features)) > 0
     w[w.sum(axis=1) < MIN_KEPT] = True
     return w
 
@@ -128,8 +127,8 @@ def cycle_gap(trial: Trial, z, rigs: list[RigSetup], level: float) -> CycleGap:
     trial's fresh realisations (:class:`CycleGap`), judged at the family-wise ``level``."""
     problem = dataclasses.replace(trial.problem, statistics="bands+folded")
     per = fresh_features(trial, np.asarray(z)[None], problem=problem)[0]  # (R, M, B + S)
-    n_band = np.asarray(trial.problem.data).shape[-1]
-    kept = regime_kept(trial, per[..., :n_band])
+    n_band = problem.n_bands
+    kept = regime_kept(trial, per)
     n = dict(problem.static)["n_samples"]
     measured = np.stack([rig.folded(n) for rig in rigs])
     spreads = [ensemble_spread(per[r, kept[r], n_band:]) for r in range(len(rigs))]

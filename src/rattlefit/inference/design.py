@@ -255,6 +255,16 @@ def suggest(
     return rows
 
 
+def plan_document(rows: Sequence[Planned], *, seed: int, realisations: int) -> dict:
+    """:func:`suggest`'s ``rows`` as the fit document's ``suggest``: the ``seed`` and
+    ``realisations`` per point it used, and each row's :meth:`Planned.to_json`."""
+    return {
+        "seed": seed,
+        "realisations": realisations,
+        "candidates": [r.to_json() for r in rows],
+    }
+
+
 def film_information(rec: Recording, values: dict, films: dict, options, n: int, rng):
     """:func:`recording_information` of ``rec`` at the fitted ``values``, its film named by
     its lubrication (the fitted film of that lubrication, else :data:`TYPICAL_FILM`)."""

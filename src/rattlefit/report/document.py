@@ -21,6 +21,7 @@ from .inputs import (
     same_recordings,
 )
 from .summary import recording_summary, summary_rows
+from .tables import suggestion_note, suggestion_table
 
 CSS = """
 body { font-family: -apple-system, 'Segoe UI', Helvetica, Arial, sans-serif; color: #1d1d1f;
@@ -148,33 +149,22 @@ def _parameter_section(fit: dict, lubrications: list[str]) -> str:
 
 
 def _suggest_section(fit: dict) -> str:
-    """The table of ``identify --suggest`` (the fit document's ``suggest``), if there is one:
-    each candidate's predicted 95 % factors."""
+    """The table of ``identify --suggest`` (the fit document's ``suggest``), if there is one."""
     plan = fit.get("suggest")
     if not plan:
         return ""
-    rows = plan["candidates"]
-    films = [k for k in rows[0]["factors"] if k.startswith("a[")]
-    cols = [*films, "drag_torque", "viscosity_scale"]
-
-    def cell(v) -> str:
-        return "—" if v is None or v > 1e3 else f"×{v:.2f}"
-
-    head = "".join(f"<th>{escape(c.replace('_scale', ''))}</th>" for c in cols)
+    head, *rows = suggestion_table(plan)
+    cells = "".join(f"<th>{escape(c)}</th>" for c in head)
     body = "".join(
-        f"<tr><td>{escape('this fit alone' if r['recording'] == 'now' else '+ ' + r['recording'])}"
-        "</td>"
-        + "".join(f'<td class="num">{cell(r["factors"].get(c))}</td>' for c in cols)
+        f"<tr><td>{escape(r[0])}</td>"
+        + "".join(f'<td class="num">{escape(c)}</td>' for c in r[1:])
         + "</tr>"
         for r in rows
     )
+    note = suggestion_note(plan)
     return (
-        "<h2>What to record next</h2><p>Predicted 95 % interval factors at the fitted point "
-        f"with one more recording (Fisher information of {plan.get('realisations')} simulated "
-        f"realisations per point, seed {plan.get('seed')}; local and Gaussian, so an actual "
-        "fit's intervals can be wider; — : not bounded).</p>"
-        f'<table class="parameters"><tr><th>with one more recording</th>{head}</tr>{body}'
-        "</table>"
+        f"<h2>What to record next</h2><p>{escape(note[0].upper() + note[1:])}.</p>"
+        f'<table class="parameters"><tr>{cells}</tr>{body}</table>'
     )
 
 

@@ -237,33 +237,39 @@ def format_diagnosis(diag: Diagnosis) -> str:
     return "\n".join(lines)
 
 
-#: Columns of :func:`format_suggestions`: the films first, then the drag torque and the
+#: Columns of :func:`suggestion_table`: the films first, then the drag torque and the
 #: viscosity, the parameters a test is planned for.
 PLANNED_COLUMNS = ("drag_torque", "viscosity_scale")
 
 
-def format_suggestions(rows, *, seed: int, realisations: int) -> str:
-    """:func:`~rattlefit.inference.design.suggest`'s table: the predicted 95 % interval
-    factor of each film half-length, the drag torque and the viscosity now and with each
-    candidate recording added, and the ``seed`` and ``realisations`` per point it used."""
-    films = [k for k in rows[0].factors if k.startswith("a[")]
-    cols = [*films, *PLANNED_COLUMNS]
-    head = ("with one more recording", *(c.replace("_scale", "") for c in cols))
-    table = [head]
+def suggestion_table(plan: dict) -> list[tuple[str, ...]]:
+    """The header and rows, as text cells, of a fit document's ``suggest``
+    (:func:`~rattlefit.inference.design.plan_document`): each candidate's predicted 95 %
+    factor of each film half-length, the drag torque and the viscosity; "—" unbounded."""
+    rows = plan["candidates"]
+    cols = [*(k for k in rows[0]["factors"] if k.startswith("a[")), *PLANNED_COLUMNS]
+    table = [("with one more recording", *(c.replace("_scale", "") for c in cols))]
     for r in rows:
-        cells = [
-            "—"
-            if not np.isfinite(r.factors.get(c, np.inf)) or r.factors[c] > 1e3
-            else f"×{r.factors[c]:.2f}"
-            for c in cols
-        ]
-        table.append(("(this fit alone)" if r.label == "now" else f"+ {r.label}", *cells))
-    widths = [max(len(row[i]) for row in table) for i in range(len(head))]
+        factors = [r["factors"].get(c) for c in cols]
+        cells = ["—" if f is None or f > 1e3 else f"×{f:.2f}" for f in factors]
+        label = "(this fit alone)" if r["recording"] == "now" else f"+ {r['recording']}"
+        table.append((label, *cells))
+    return table
+
+
+def suggestion_note(plan: dict) -> str:
+    """What :func:`suggestion_table`'s factors are, with the seed and realisations used."""
+    return (
+        "predicted 95 % interval factors at the fitted point (Fisher information of "
+        f"{plan['realisations']} simulated realisations per point, seed {plan['seed']}; local "
+        "and Gaussian, so a fit's profile intervals can be wider); — : not bounded"
+    )
+
+
+def format_suggestions(plan: dict) -> str:
+    """:func:`suggestion_table` as aligned text, with :func:`suggestion_note` below."""
+    table = suggestion_table(plan)
+    widths = [max(len(row[i]) for row in table) for i in range(len(table[0]))]
     lines = ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)) for row in table]
     lines.insert(1, "  ".join("-" * w for w in widths))
-    note = (
-        "predicted 95 % interval factors at the fitted point (Fisher information of "
-        f"{realisations} simulated realisations per point, seed {seed}; local and Gaussian, so "
-        "a fit's profile intervals can be wider); — : not bounded"
-    )
-    return "\n".join([*lines, note])
+    return "\n".join([*lines, suggestion_note(plan)])
