@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import subprocess
 import time
 
 import numpy as np
@@ -34,7 +33,7 @@ from rattlefit.features.spectra import BandSpec, spectral_features
 from rattlefit.inference.rig import setup
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.reproducibility import platform_info
-from studies import write_json
+from studies import head_commit, write_json
 
 #: (name, pair, centre distance mm, lubrication, fluctuation %, frequency Hz, a m, viscosity)
 REGIMES = (
@@ -156,14 +155,6 @@ def result_document(rows: list[dict], n: int, delta: float) -> dict:
         "platform": platform_info(),
         "commit": head_commit(),
     }
-
-
-def head_commit() -> str:
-    """The checkout's commit (short), or "" outside a git checkout."""
-    out = subprocess.run(
-        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
-    )
-    return out.stdout.strip()
 
 
 if __name__ == "__main__":

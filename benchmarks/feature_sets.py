@@ -13,19 +13,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import statistics
 import subprocess
 import sys
 from pathlib import Path
 
 from rattlefit.reproducibility import platform_info
-from studies import write_json
+from studies import head_commit, log_width, write_json
 
 FEATURE_SETS = ("bands", "bands+folded")
 PARAMETERS = ("a", "drag_torque", "viscosity")
-#: Where a lower end reported as 0 stands: the range's lower end.
-RANGE_LOW = {"a": 1e-6, "drag_torque": 2e-3, "viscosity": 1e-9}
 HERE = Path(__file__).resolve().parent
 
 
@@ -40,11 +37,6 @@ def coverage_run(directory: Path, seed: int, cases: int, features: str) -> dict:
             check=True,
         )  # fmt: skip
     return json.loads(out.read_text())
-
-
-def log_width(p: dict, name: str) -> float:
-    lower = p["lower"] if p["lower"] > 0 else RANGE_LOW[name]
-    return math.log(p["upper"] / lower)
 
 
 def summary(run: dict) -> dict:
@@ -95,9 +87,7 @@ def result_document(seed: int, summaries: dict) -> dict:
         "command": f"python benchmarks/feature_sets.py --seed {seed} --json OUT",
         "results": {"seed": seed, **summaries},
         "platform": platform_info(),
-        "commit": subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
-        ).stdout.strip(),
+        "commit": head_commit(),
     }
 
 

@@ -18,14 +18,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import subprocess
 import sys
 import time
 from pathlib import Path
 
 from rattlefit.reproducibility import platform_info
-from studies import write_json
+from studies import head_commit, log_width, write_json
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "recordings"
@@ -76,19 +75,12 @@ def widths(doc: dict, truth: dict) -> dict:
     out = {}
     for name in PARAMETERS:
         p = doc["parameters"][name]
-        lo = max(p["lower"], 1e-300)
         row = {"lower": p["lower"], "upper": p["upper"], "bound": p["bound"]}
-        row["log_width"] = (
-            math.log(p["upper"] / lo) if p["lower"] > 0 else math.log(p["upper"] / RANGE_LOW[name])
-        )
+        row["log_width"] = log_width(p, name)
         if name in truth:
             row["truth_inside"] = bool(p["lower"] <= truth[name] <= p["upper"])
         out[name] = row
     return out
-
-
-#: Where a lower end reported as 0 stands in the log width: the range's lower end.
-RANGE_LOW = {"a": 1e-6, "drag_torque": 2e-3, "viscosity": 1e-9}
 
 
 def study(directory: Path, feature_sets: list[str], pairs: list[str], say) -> list[dict]:
@@ -195,9 +187,7 @@ def result_document(rows: list[dict]) -> dict:
         "command": "python benchmarks/long_recording.py --json OUT",
         "results": rows,
         "platform": platform_info(),
-        "commit": subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
-        ).stdout.strip(),
+        "commit": head_commit(),
     }
 
 

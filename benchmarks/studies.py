@@ -1,13 +1,19 @@
-"""What the studies in this directory share: `--set FIELD=JSON` overrides of `FitOptions`, and
-their JSON reports written whole."""
+"""What the studies in this directory share: `--set FIELD=JSON` overrides of `FitOptions`,
+their JSON reports written whole, the checkout's commit, and an interval's log width."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
+import subprocess
 
 from rattlefit.inference.options import FLAT_FIELDS
+from rattlefit.inference.parameters import default_specs
+
+#: Where a lower end reported as 0 (a one-sided interval) stands: the range's lower end.
+RANGE_LOW = {s.name: s.lower for s in default_specs([], {})}
 
 
 def add_set_argument(ap: argparse.ArgumentParser) -> None:
@@ -47,3 +53,17 @@ def write_json(path: str, doc: dict, **dump_options) -> None:
     with open(tmp, "w") as fh:
         json.dump(doc, fh, indent=2, **dump_options)
     os.replace(tmp, path)
+
+
+def head_commit() -> str:
+    """The checkout's commit (short), or "" outside a git checkout."""
+    out = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
+    )
+    return out.stdout.strip()
+
+
+def log_width(p: dict, name: str) -> float:
+    """The log width of interval ``p`` (``identify``'s JSON ``parameters[name]``); a lower end
+    reported as 0 stands for the range's lower end (:data:`RANGE_LOW`)."""
+    return math.log(p["upper"] / (p["lower"] if p["lower"] > 0 else RANGE_LOW[name]))
