@@ -1,8 +1,9 @@
 """Rewrite the README's results table from the result files in benchmarks/results/.
 
 Each ``benchmarks/results/*.json`` holds one benchmark or study: ``what`` it measures, a
-one-line ``summary`` of the latest figures, the ``aim`` and ``verdict``, and ``order`` (its row's
-place). This script renders them as a Markdown table and puts it between the README's markers
+one-line ``summary`` of the latest figures (the table shows its first clause), the ``aim``
+and ``verdict``, and ``order`` (its row's place). This script renders them as a Markdown
+table and puts it between the README's markers
 
     <!-- results:begin -->
     <!-- results:end -->
@@ -51,6 +52,20 @@ def load_results(directory: Path) -> list[tuple[str, dict]]:
     return docs
 
 
+def headline(summary: str) -> str:
+    """The summary's first clause (up to a "; " or a sentence's ". " outside parentheses),
+    with "…" where more follows in the file."""
+    depth = 0
+    for i, c in enumerate(summary):
+        depth += (c in "([") - (c in ")]")
+        if depth == 0 and (
+            summary.startswith("; ", i)
+            or (summary.startswith(". ", i) and not summary[i - 1 : i].isdigit())
+        ):
+            return summary[:i] + " …"
+    return summary
+
+
 def render(docs: list[tuple[str, dict]], link_prefix: str = "benchmarks/results/") -> str:
     """The Markdown table of ``docs``, markers excluded."""
     lines = [
@@ -60,7 +75,7 @@ def render(docs: list[tuple[str, dict]], link_prefix: str = "benchmarks/results/
     for name, doc in docs:
         row = (
             _cell(doc["what"]),
-            _cell(doc["summary"]),
+            _cell(headline(doc["summary"])),
             _cell(doc["aim"]),
             _cell(doc["verdict"]),
             f"[{name}]({link_prefix}{name})",
