@@ -355,6 +355,48 @@ def test_two_effects_are_named_together_only_when_they_close_clearly_more_than_e
     assert json.loads(json.dumps(pair.as_dict(), allow_nan=False))["beyond_single"] == beyond
 
 
+def _runout_finding():
+    from rattlefit.diagnosis.evidence import Finding
+    from rattlefit.features.orders import AngleTest
+
+    test = AngleTest("runout.secondary", 1200.0, 2, 0.0, 33.5e-6, 0.2e-6)
+    return Finding(0, test, "runout", 0.005, True)
+
+
+@pytest.mark.parametrize("beyond", [None, False, True])
+def test_beside_an_effect_the_encoders_found_another_is_named_only_together_with_it(beyond):
+    # The encoders find run-out; its band candidate leaves a significant rest, while a
+    # dissipation candidate alone leaves noise (it absorbs run-out's band signature in
+    # another form). That candidate alone is not named beside run-out: only a pair with
+    # run-out that closes clearly more than run-out alone.
+    from rattlefit.diagnosis.pairs import pair_candidates
+
+    runout = _outcome("runout", 86.4, 47.8, 0.0057)
+    damping = _outcome("mesh_damping", 86.4, 35.2, 0.13)
+    friction = _outcome("flank_friction", 86.4, 51.0, 0.0035)
+    outcomes = [damping, runout, friction]
+    pairs = pair_candidates(outcomes, frozenset({"runout"}))
+    assert [(a.name, b.name) for a, b in pairs] == [
+        ("runout", "mesh_damping"),
+        ("runout", "flank_friction"),
+    ]
+    assert pair_candidates(outcomes)[0][0] is damping  # no finding: the least misfit first
+    if beyond is not None:
+        pair = dataclasses.replace(
+            _outcome("runout+mesh_damping", 86.4, 30.1, 0.3), beyond_single=beyond
+        )
+        outcomes = [*outcomes, pair]
+    diag = dataclasses.replace(_diagnosis_of(outcomes, 86.4), findings=(_runout_finding(),))
+    assert diag.seen_in_bands == {"runout"}
+    if beyond:
+        assert diag.verdict.label == "runout+mesh_damping"
+    else:
+        assert diag.verdict.label == "runout"
+        assert "remains unexplained" in diag.verdict.sentence
+    # without the finding, run-out could not be named, and the damping alone explains
+    assert _diagnosis_of(outcomes, 86.4).verdict.label == "mesh_damping"
+
+
 def test_the_size_interval_is_where_the_profile_rises_by_the_threshold(monkeypatch):
     # A χ² that rises quadratically in log10(size) about the fitted size, k per decade²: the
     # interval's ends lie at ±√(threshold/k) decades (the crossing is interpolated in the

@@ -37,8 +37,10 @@ The verdict (:class:`~rattlefit.diagnosis.result.Verdict`) is ``"none"`` when th
 without extra effects fits the band spectrum (its χ² after the re-fit, on the fresh
 realisations, has p ≥ ``significance``) and its drive-cycle statistics, and no model-free
 test stands out; the effects that significant model-free tests point to are named; a band
-candidate is named when it is supported and leaves a misfit consistent with noise; a
-significant gap that nothing explains is ``"unexplained"``.
+candidate is named when it is supported and leaves a misfit consistent with noise, and,
+beside an effect the encoders found, only together with that effect (it is known to be
+there, so the other candidate must close clearly more than it alone); a significant gap
+that nothing explains is ``"unexplained"``.
 
 An effect is *supported* when an F-test of its χ² drop against the misfit that remains gives
 p < ``significance`` / (effects tried) (Bonferroni: ``significance`` is the family-wise
@@ -271,11 +273,12 @@ def try_effects(trial: Trial, names, z_base, chi2_without, level, say):
 
 
 def try_pairs(trial: Trial, diag: Diagnosis, fitted: dict, level: float, say) -> list:
-    """When the band gap is significant and the best supported candidate leaves a
-    significant misfit, that candidate fitted together with each of the next supported
-    ones (:mod:`rattlefit.diagnosis.pairs`): their outcomes (each fitted point added to
+    """When the band gap is significant and the first candidate of
+    :func:`~rattlefit.diagnosis.pairs.pair_candidates` (an effect the encoders found, else
+    the best supported one) leaves a significant misfit, that candidate fitted together
+    with each of the next supported ones: their outcomes (each fitted point added to
     ``fitted``)."""
-    pairs = pair_candidates(diag.outcomes)
+    pairs = pair_candidates(diag.outcomes, diag.seen)
     if not diag.band_gap or not pairs or pairs[0][0].p_after >= diag.significance:
         return []
     out = []

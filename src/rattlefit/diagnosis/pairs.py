@@ -1,7 +1,8 @@
 """Two effects together: tried when the best single candidate leaves a significant misfit.
 
 A recording can carry two unmodelled effects, and then neither alone closes the band gap.
-The best supported single candidate is paired with each of the next
+The best supported single candidate (or, when the encoders found an effect, that effect's
+candidate: it is known to be present) is paired with each of the next
 :data:`PAIR_PARTNERS` supported ones: both start at their own fitted sizes (the film
 half-lengths and the drag torque where the better one put them) and are re-fitted together.
 The pair is judged like a single effect against the model without effects, and in addition
@@ -21,14 +22,22 @@ from .trial import Z95_ONE_SIDED, Trial, difference_sd, f_test, judge_effect, re
 PAIR_PARTNERS = 2
 
 
-def pair_candidates(outcomes: list[EffectOutcome]) -> list[tuple[EffectOutcome, EffectOutcome]]:
-    """The pairs worth fitting: the supported single candidate with the least misfit, with
-    each of the next :data:`PAIR_PARTNERS` supported ones."""
-    supported = sorted(
-        (o for o in outcomes if o.supported and not o.failure and "+" not in o.name),
-        key=lambda o: o.chi2_with,
+def pair_candidates(
+    outcomes: list[EffectOutcome], seen: frozenset[str] = frozenset()
+) -> list[tuple[EffectOutcome, EffectOutcome]]:
+    """The pairs worth fitting: the first member is the single candidate of an effect the
+    model-free tests found (``seen``; the least misfit of them), else the supported one with
+    the least misfit; its partners are the next :data:`PAIR_PARTNERS` supported ones."""
+    singles = sorted(
+        (o for o in outcomes if not o.failure and "+" not in o.name), key=lambda o: o.chi2_with
     )
-    return [(supported[0], o) for o in supported[1 : 1 + PAIR_PARTNERS]]
+    found = [o for o in singles if o.name in seen]
+    supported = [o for o in singles if o.supported]
+    if not found and not supported:
+        return []
+    first = found[0] if found else supported[0]
+    partners = [o for o in supported if o is not first]
+    return [(first, o) for o in partners[:PAIR_PARTNERS]]
 
 
 def pair_name(first: EffectOutcome, second: EffectOutcome) -> str:

@@ -174,23 +174,39 @@ class Diagnosis:
         has p below the significance."""
         return bool(self.gap_chi2[2] < self.significance)
 
+    @property
+    def seen(self) -> frozenset[str]:
+        """The effects that significant model-free tests point to."""
+        return frozenset(f.effect for f in self.findings if f.significant)
+
+    @property
+    def seen_in_bands(self) -> frozenset[str]:
+        """The effects of :attr:`seen` that were also fitted to the band spectrum (and whose
+        fit did not fail): the encoders show them present, so a band explanation must hold
+        them."""
+        fitted = {o.name for o in self.outcomes if not o.failure and "+" not in o.name}
+        return self.seen & fitted
+
     def explaining(self) -> EffectOutcome | None:
         """The band candidate that explains the band gap: supported, leaving a misfit
         consistent with noise (``p_after`` ≥ significance) or removing at least
-        :data:`CLOSES_MOST` of the excess misfit, and, for an effect the encoders see
+        :data:`CLOSES_MOST` of the excess misfit; for an effect the encoders see
         (:data:`~rattlefit.diagnosis.evidence.ENCODER_VISIBLE`), found by its model-free
-        test too; two effects together only when they close clearly more than the better
+        test too; holding every effect of :attr:`seen_in_bands` (another effect is named
+        beside a seen one only when the two together close clearly more than the seen one
+        alone); two effects together only when they close clearly more than the better
         alone (``beyond_single``); the least misfit first; None when there is no band gap
         or no candidate closes it."""
         if not self.band_gap:
             return None
-        seen = {f.effect for f in self.findings if f.significant}
+        seen, present = self.seen, self.seen_in_bands
         closing = [
             o
             for o in self.outcomes
             if o.supported
             and (o.p_after >= self.significance or o.gap_closed >= CLOSES_MOST)
             and all(n not in ENCODER_VISIBLE or n in seen for n in o.effects)
+            and present <= set(o.effects)
             and (len(o.effects) == 1 or o.beyond_single)
         ]
         return min(closing, key=lambda o: o.chi2_with) if closing else None
