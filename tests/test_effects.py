@@ -346,26 +346,26 @@ def full_states(model, params, drive, options):
     return sol.ys
 
 
-def test_shaft_inertia_rings_at_its_mode_and_keeps_the_momentum(pair2):
-    # With the mesh open (the gear mid-backlash, no film, no drag, a steady drive) the gear
-    # and the shaft's inertia are two masses on a spring. Their relative displacement φ rings
-    # at f√(1 − ζ²) and decays at ζ·2πf, and the momentum m q̇ + m_s (q̇ + φ̇) stays zero,
-    # so the gear moves by q = −m_s/(m + m_s) · (φ − φ0): through the simulator, q(t) is a
-    # closed form.
+@pytest.mark.parametrize("fluctuation", [0.0, 0.02])
+def test_shaft_inertia_rings_at_its_mode_and_keeps_the_momentum(pair2, fluctuation):
+    # With the mesh open (the gear mid-backlash, no film, no drag) the gear and the shaft's
+    # inertia are two free masses on a spring, whatever the drive does. Started both at the
+    # drive's initial speed U = r1 θ̇1(0), the shaft deflected by φ0, their deflection φ rings
+    # at f√(1 − ζ²) and decays at ζ·2πf, and the momentum stays that of the mass centre, so
+    # the gear's absolute position is x_g(0) + U t − m_s/(m + m_s) · (φ − φ0), and
+    # q = x_g − r1 θ1 is a closed form through the simulator. A fluctuating drive (small
+    # enough to keep the mesh open) moves q by r1 (θ1(0) + θ̇1(0) t − θ1(t)).
     ratio, f, zeta = 1.0, 350.0, 0.02
     shaft = fx.ShaftInertia(inertia_ratio=ratio, frequency=f, damping_ratio=zeta)
     model = rf.RattleModel.from_geometry(pair2).with_effects(shaft)
     params = rf.RattleParams(0.0, 0.0, 0.49, pair2.backlash)
-    phi0 = 0.4 * pair2.backlash  # the gear then moves by at most 0.4 of half the backlash
-    sol = rf.simulate(
-        model,
-        params,
-        _steady_drive(),
-        duration=0.02,
-        sample_rate=1e5,
-        y0=[0.0, 0.0, phi0, 0.0],
-        **STEADY,
-    )
+    drive = rf.Drive.commanded(52.36, fluctuation, 16.0)
+    phi0 = 0.3 * pair2.backlash  # the gear then moves by at most 0.3 of half the backlash
+    # the state (u, u̇) = s (φ + q, φ̇ + v), s = r/(1 + r), at q = v = 0 (both at the
+    # drive's speed)
+    share = ratio / (1 + ratio)
+    y0 = [0.0, 0.0, share * phi0, 0.0]
+    sol = rf.simulate(model, params, drive, duration=0.02, sample_rate=1e5, y0=y0, **STEADY)
     t = np.asarray(sol.time)
     w = 2 * math.pi * f
     wd = w * math.sqrt(1 - zeta**2)
@@ -374,11 +374,27 @@ def test_shaft_inertia_rings_at_its_mode_and_keeps_the_momentum(pair2):
         * np.exp(-zeta * w * t)
         * (np.cos(wd * t) + zeta / math.sqrt(1 - zeta**2) * np.sin(wd * t))
     )
-    q = -ratio / (1 + ratio) * (phi - phi0)
+    r1 = float(model.r1)
+    theta1 = np.asarray(jax.vmap(drive.angle)(sol.time))
+    rigid = r1 * (float(drive.angle(0.0)) + float(drive.speed(0.0)) * t - theta1)
+    q = rigid - ratio / (1 + ratio) * (phi - phi0)
     np.testing.assert_allclose(np.asarray(sol.q), q, rtol=0, atol=1e-6 * phi0)
     assert np.ptp(q) > 0.5 * phi0  # it did ring
+    if fluctuation:  # the drive did move it, by far more than the tolerance
+        assert np.ptp(rigid) > 1e-2 * phi0
+    assert np.max(np.abs(q)) < 0.5 * float(pair2.backlash)  # the mesh stayed open
     assert model.state_size == 4
     assert model.state_atol((1e-12, 1e-9)) == (1e-12, 1e-9, 1e-12, 1e-9)
+
+
+def test_shaft_inertia_starts_undeflected():
+    shaft = fx.ShaftInertia(inertia_ratio=3.0)  # s = 3/4
+    y = (
+        rf.RattleModel.from_geometry(rf.table2_pair("II"))
+        .with_effects(shaft)
+        .full_state(jnp.array([[1e-5, 0.2], [-2e-5, 0.0]]))
+    )
+    np.testing.assert_allclose(np.asarray(y[:, 2:]), 0.75 * np.asarray(y[:, :2]), rtol=1e-15)
 
 
 def test_unknown_effect_names_the_known_ones():

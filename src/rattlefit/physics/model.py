@@ -254,11 +254,13 @@ class Effect(eqx.Module):
 
     An effect may also carry state of its own (another degree of freedom, e.g. a shaft with
     inertia): ``states`` components appended to the model's ``(q, v)``, in the units
-    ``state_units`` (``"m"`` or ``"m/s"``, which pick the solver's absolute tolerance), zero at
-    the start, and the hook
+    ``state_units`` (``"m"`` or ``"m/s"``, which pick the solver's absolute tolerance), and
+    the hooks
 
     * :meth:`coupled` — given its state and the net force on the driven gear from everything
-      else, the force it adds on the pitch circle and its state's time derivative.
+      else, the force it adds on the pitch circle and its state's time derivative;
+    * :meth:`initial_state` — its state at the start, given the model's ``(q, v)`` there
+      (zero by default).
 
     Three class attributes let :mod:`rattlefit.diagnosis.diagnose` fit the effect: ``name``
     (its short name), ``ranges`` (fitted field → (unit, lower, upper)) and ``shape_fields``
@@ -286,6 +288,11 @@ class Effect(eqx.Module):
         """(force on the pitch circle, N; d state/dt) for an effect with ``states`` > 0;
         ``f_gear`` is the net force on the driven gear from everything else (N)."""
         return jnp.zeros(()), jnp.zeros((self.states,))
+
+    def initial_state(self, q, v):
+        """The effect's own state (…, ``states``) at the start, where the model's state is
+        ``(q, v)`` (arrays of one shape): zero."""
+        return jnp.zeros((*jnp.shape(q), self.states))
 
     def replace(self, **values) -> Effect:
         """The same effect with the named fields replaced (values as arrays)."""
@@ -374,12 +381,13 @@ class RattleModel(eqx.Module):
 
     def full_state(self, y0):
         """``y0`` (…, 2) or (…, :attr:`state_size`) as the full state: the effects' own
-        components appended at zero."""
+        components appended where :meth:`Effect.initial_state` puts them."""
         y0 = jnp.asarray(y0, dtype=float)
-        extra = self.state_size - y0.shape[-1]
-        if extra == 0:
+        if y0.shape[-1] == self.state_size:
             return y0
-        return jnp.concatenate([y0, jnp.zeros((*y0.shape[:-1], extra))], axis=-1)
+        q, v = y0[..., 0], y0[..., 1]
+        own = [e.initial_state(q, v) for e in self.effects if e.states]
+        return jnp.concatenate([y0, *own], axis=-1)
 
     def state_atol(self, atol):
         """The solver's absolute tolerance per state component from ``atol``: one number for

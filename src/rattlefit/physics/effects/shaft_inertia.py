@@ -19,14 +19,26 @@ class ShaftInertia(Effect):
     own (the rest of the shaft and what it holds): the rig's flexural mode.
 
     On the pitch circle the shaft's inertia is a mass ``m_s = inertia_ratio · m`` (m = I2/r2²,
-    the model's) joined to the driven gear by a spring κ and a dashpot γ. The effect's state
-    is their relative displacement and velocity ``(φ, φ̇)`` (m, m/s), ``φ = r2 (θ_s − θ2)``.
-    The mode of the two masses on the spring, with the mesh open, has the frequency
-    ``frequency`` (Hz) and the damping ratio ``damping_ratio`` (static, default 0.02):
-    ``κ = (2π f)² μ``, ``γ = 2 ζ √(κ μ)``, ``μ = m m_s / (m + m_s)``. The shaft pulls the gear
-    with ``F_s = κ φ + γ φ̇``; with ``F`` the net force on the gear from everything else,
+    the model's) joined to the driven gear by a spring κ and a dashpot γ. The mode of the two
+    masses on the spring, with the mesh open, has the frequency ``frequency`` (Hz) and the
+    damping ratio ``damping_ratio`` (static, default 0.02): ``κ = (2π f)² μ``,
+    ``γ = 2 ζ √(κ μ)``, ``μ = m m_s / (m + m_s)``. The shaft pulls the gear with
+    ``F_s = κ φ + γ φ̇``, φ = r2 (θ_s − θ2) its deflection; with ``F`` the net force on the
+    gear from everything else,
 
-        m r2 θ̈2 = F + F_s,    m_s r2 θ̈_s = −F_s,    φ̈ = −F_s / m_s − (F + F_s) / m.
+        m r2 θ̈2 = F + F_s,    m_s r2 θ̈_s = −F_s.
+
+    The effect's state ``(u, u̇)`` (m, m/s) is the far mass's displacement from the rigid
+    drive motion, ``ψ = r2 θ_s − r1 θ1``, times its share of the two masses,
+    ``s = m_s / (m + m_s)``: ``u = s ψ``. Then ``s φ = u − s q``,
+
+        F_s = m ω² (u − s q) + 2 ζ ω m (u̇ − s v),    ü = −F_s / (m (1 + r)) − s r1 θ̈1,
+
+    with ω = 2π f and r the inertia ratio. u is the gear's motion filtered by the shaft's
+    mode and scaled by what the gear feels of it, so the solver resolves the shaft's ringing
+    only as far as it moves the gear: at the absent end (r = 1e-7) it costs no steps, where
+    φ as the state made every simulation take about 30 % more. The shaft starts
+    undeflected, ``(u, u̇) = s (q, v)``.
 
     The bearing drag stays on the gear, and the encoders read the gear. At a small
     ``inertia_ratio`` the spring is weak (κ ∝ m_s) and the gear feels nothing.
@@ -47,17 +59,20 @@ class ShaftInertia(Effect):
     frequency: Scalar = parameter_field(350.0)
     damping_ratio: float = eqx.field(static=True, default=0.02)
 
-    def spring_and_dashpot(self, model: RattleModel):
-        """(κ in N/m, γ in N s/m) of the shaft on the pitch circle."""
-        m, m_s = model.mass, self.inertia_ratio * model.mass
-        reduced = m * m_s / (m + m_s)
-        kappa = (2.0 * math.pi * self.frequency) ** 2 * reduced
-        return kappa, 2.0 * self.damping_ratio * jnp.sqrt(kappa * reduced)
+    def share(self):
+        """s = m_s / (m + m_s), the far mass's share of the two."""
+        return self.inertia_ratio / (1.0 + self.inertia_ratio)
+
+    def initial_state(self, q, v):
+        """The shaft undeflected at the start: ``(u, u̇) = s (q, v)``."""
+        return self.share() * jnp.stack([q, v], axis=-1)
 
     def coupled(self, t, q, v, state, f_gear, model: RattleModel, params, drive):
-        kappa, gamma = self.spring_and_dashpot(model)
-        phi, phi_dot = state[0], state[1]
-        f_shaft = kappa * phi + gamma * phi_dot
-        m_s = self.inertia_ratio * model.mass
-        phi_ddot = -f_shaft / m_s - (f_gear + f_shaft) / model.mass
-        return f_shaft, jnp.stack([phi_dot, phi_ddot])
+        w = 2.0 * math.pi * self.frequency
+        s = self.share()
+        u, u_dot = state[0], state[1]
+        f_shaft = model.mass * w * (w * (u - s * q) + 2.0 * self.damping_ratio * (u_dot - s * v))
+        u_ddot = -f_shaft / (model.mass * (1.0 + self.inertia_ratio)) - s * model.r1 * (
+            drive.acceleration(t)
+        )
+        return f_shaft, jnp.stack([u_dot, u_ddot])
