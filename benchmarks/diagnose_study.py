@@ -171,7 +171,8 @@ def run_cases(cases: list[dict], full: bool, cases_dir: Path | None, say) -> lis
 
 
 def summary(rows: list[dict]) -> dict:
-    """False-positive rate on the clean cases, right rate on the effect cases, confusion."""
+    """False-positive rate on the clean cases, right rate on the effect cases, right verdicts
+    per set, confusion."""
     clean = [r for r in rows if set(r["expected"]) <= set(CLEAN)]
     effect = [r for r in rows if not set(r["expected"]) <= set(CLEAN)]
     confusion = Counter((("clean" if r in clean else r["expected"][0]), r["verdict"]) for r in rows)
@@ -182,6 +183,11 @@ def summary(rows: list[dict]) -> dict:
         "effect_cases": len(effect),
         "effect_right": sum(r["right"] for r in effect),
         "effect_right_rate": sum(r["right"] for r in effect) / max(len(effect), 1),
+        "per_set": {
+            name: {"cases": len(rs), "right": sum(r["right"] for r in rs)}
+            for name in dict.fromkeys(r["set"] for r in rows)
+            for rs in [[r for r in rows if r["set"] == name]]
+        },
         "confusion": [
             {"truth": t, "verdict": v, "count": n} for (t, v), n in sorted(confusion.items())
         ],
@@ -202,9 +208,15 @@ def result_document(rows: list[dict], n_cases: int, method_commit: str) -> dict:
         "what": "full `diagnose` (default options) on recordings rattlefit's fitted model did "
         "not make: the shared independent recordings, the clean calibration set and the "
         "injected set of benchmarks/diagnose_sets.py",
-        "summary": f"{len(rows)} of the {n_cases} cases so far (the study resumes from its "
-        f"committed rows): {result['false_positives']} of {clean} clean recordings got an "
-        f"effect verdict; {result['effect_right']} of {effect} effect cases right",
+        "summary": (
+            f"all {n_cases} cases"
+            if len(rows) == n_cases
+            else f"{len(rows)} of the {n_cases} cases so far (the study resumes from its "
+            "committed rows)"
+        )
+        + f": {result['false_positives']} of {clean} clean recordings got an "
+        f"effect verdict; {result['effect_right']} of {effect} effect cases right; "
+        + ", ".join(f"{k} {v['right']}/{v['cases']} right" for k, v in result["per_set"].items()),
         "aim": "≤ 5 % false positives on ≥ 20 clean recordings; ≥ 80 % of effect cases right",
         "verdict": ("met" if fp_ok and right_ok else "missed")
         if enough

@@ -395,6 +395,14 @@ def test_shaft_inertia_starts_undeflected():
         .full_state(jnp.array([[1e-5, 0.2], [-2e-5, 0.0]]))
     )
     np.testing.assert_allclose(np.asarray(y[:, 2:]), 0.75 * np.asarray(y[:, :2]), rtol=1e-15)
+    # a batch of shafts (one per row, as a lockstep batch holds them)
+    shafts = fx.ShaftInertia(inertia_ratio=jnp.array([3.0, 1.0]))
+    y = (
+        rf.RattleModel.from_geometry(rf.table2_pair("II"))
+        .with_effects(shafts)
+        .full_state(jnp.array([[1e-5, 0.2], [-2e-5, 0.1]]))
+    )
+    np.testing.assert_allclose(np.asarray(y[:, 2:]), [[0.75e-5, 0.15], [-1e-5, 0.05]], rtol=1e-15)
 
 
 def test_unknown_effect_names_the_known_ones():

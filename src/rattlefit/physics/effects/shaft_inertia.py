@@ -64,8 +64,9 @@ class ShaftInertia(Effect):
         return self.inertia_ratio / (1.0 + self.inertia_ratio)
 
     def initial_state(self, q, v):
-        """The shaft undeflected at the start: ``(u, u̇) = s (q, v)``."""
-        return self.share() * jnp.stack([q, v], axis=-1)
+        """The shaft undeflected at the start: ``(u, u̇) = s (q, v)`` (a batch of shafts,
+        fields of shape (N,), with ``q`` and ``v`` of shape (N,))."""
+        return jnp.expand_dims(self.share(), -1) * jnp.stack([q, v], axis=-1)
 
     def coupled(self, t, q, v, state, f_gear, model: RattleModel, params, drive):
         w = 2.0 * math.pi * self.frequency
