@@ -518,3 +518,46 @@ def test_a_fit_to_more_than_the_bands_is_refused_at_once():
     options = DiagnoseOptions(fit=FitOptions(features="bands+folded"))
     with pytest.raises(RattlefitError, match=r"FitOptions.features.*bands\+folded"):
         diagnose([rec], options)
+
+
+@pytest.mark.parametrize("settles_to_noise", [True, False])
+def test_pairs_start_from_the_first_effect_fitted_until_settled(monkeypatch, settles_to_noise):
+    # The best single candidate left a significant rest after its few iterations; fitted on
+    # until settled it leaves noise (no pair is fitted, and its settled outcome replaces it)
+    # or still a rest (the pairs start from, and are judged against, the settled point).
+    from rattlefit.diagnosis import pairs as pairs_module
+
+    diagnose_module = importlib.import_module("rattlefit.diagnosis.diagnose")
+
+    friction = _outcome("flank_friction", 55010.0, 4344.0, 1e-30)
+    damping = _outcome("mesh_damping", 55010.0, 7731.0, 1e-30)
+    settled = _outcome(
+        "flank_friction",
+        55010.0,
+        30.0 if settles_to_noise else 1966.0,
+        0.4 if settles_to_noise else 1e-20,
+    )
+    monkeypatch.setattr(pairs_module, "settled_path", lambda t, z, held, iterations: z[None] + 1)
+    monkeypatch.setattr(pairs_module, "judge_effect", lambda *a: settled)
+    monkeypatch.setattr(pairs_module, "moves", lambda *a: {})
+    started = []
+
+    def fake_pair(trial, first, second, fitted, chi2_without, level):
+        started.append((first, fitted[first.name].copy()))
+        return _outcome(f"{first.name}+{second.name}", chi2_without, 1900.0, 1e-9), None
+
+    monkeypatch.setattr(diagnose_module, "try_pair", fake_pair)
+    trial = type("T", (), {"held": lambda self, name: [], "base_iterations": 12})()
+    fitted = {"flank_friction": np.zeros(3), "mesh_damping": np.zeros(3)}
+    diag = _diagnosis_of([friction, damping], 55010.0)
+    outcomes, pairs = diagnose_module.try_pairs(
+        trial, diag, fitted, np.zeros(3), 0.01, lambda msg: None
+    )
+    assert outcomes[0].chi2_with == settled.chi2_with  # the settled outcome, in its place
+    np.testing.assert_array_equal(fitted["flank_friction"], np.ones(3))
+    if settles_to_noise:
+        assert pairs == [] and started == []
+    else:
+        assert [p.name for p in pairs] == ["flank_friction+mesh_damping"]
+        assert started[0][0].chi2_with == 1966.0  # judged against the settled single
+        np.testing.assert_array_equal(started[0][1], np.ones(3))  # and started from it

@@ -26,8 +26,8 @@ starts from an identification (:func:`~rattlefit.inference.identify.identify`) a
    realisations by luck do not count. ``gap_closed`` is the share of the excess misfit
    (χ² − dof) that the effect removes;
 5. **pairs** the best supported candidate with the next ones when it leaves a significant
-   misfit (:mod:`rattlefit.diagnosis.pairs`), and **sizes** the named candidate with a
-   profile interval (:mod:`rattlefit.diagnosis.size`).
+   misfit, after fitting it on until settled (:mod:`rattlefit.diagnosis.pairs`), and
+   **sizes** the named candidate with a profile interval (:mod:`rattlefit.diagnosis.size`).
 
 Beside the bands, the drive-cycle-folded statistics of the recordings are compared with the
 model without effects (:mod:`rattlefit.diagnosis.cycle`): where in the speed fluctuation,
@@ -72,7 +72,7 @@ from ..reproducibility import platform_info
 from ..util import stamped
 from .cycle import cycle_gap
 from .evidence import ENCODER_VISIBLE, findings
-from .pairs import pair_candidates, pair_name, try_pair
+from .pairs import pair_candidates, pair_name, settled_single, try_pair
 from .result import Diagnosis, EffectOutcome, baseline_warnings, finding_phrase
 from .screening import distinct_rows, free_alternatives, screen
 from .size import size_intervals
@@ -272,26 +272,40 @@ def try_effects(trial: Trial, names, z_base, chi2_without, level, say):
     return sorted(outcomes, key=lambda o: (bool(o.failure), o.chi2_with)), fitted
 
 
-def try_pairs(trial: Trial, diag: Diagnosis, fitted: dict, level: float, say) -> list:
+def try_pairs(trial: Trial, diag: Diagnosis, fitted: dict, z_base, level: float, say):
     """When the band gap is significant and the first candidate of
     :func:`~rattlefit.diagnosis.pairs.pair_candidates` (an effect the encoders found, else
-    the best supported one) leaves a significant misfit, that candidate fitted together
-    with each of the next supported ones: their outcomes (each fitted point added to
-    ``fitted``)."""
-    pairs = pair_candidates(diag.outcomes, diag.seen)
+    the best supported one) leaves a significant misfit: that candidate fitted on until
+    settled (:func:`~rattlefit.diagnosis.pairs.settled_single`) and, if it still leaves one,
+    fitted together with each of the next supported ones. Returns the single outcomes (the
+    settled one in its place, least misfit first) and the pairs' outcomes; ``fitted`` gets
+    every new point."""
+    outcomes, pairs = diag.outcomes, pair_candidates(diag.outcomes, diag.seen)
     if not diag.band_gap or not pairs or pairs[0][0].p_after >= diag.significance:
-        return []
+        return outcomes, []
+    first = pairs[0][0]
+    say(f"fitting {first.name} on until settled before pairing it …")
+    settled, fitted[first.name] = settled_single(
+        trial, first, fitted[first.name], z_base, diag.chi2_without, level
+    )
+    say(f"  {outcome_phrase(settled)}")
+    outcomes = sorted(
+        (settled if o is first else o for o in outcomes),
+        key=lambda o: (bool(o.failure), o.chi2_with),
+    )
+    if settled.p_after >= diag.significance:
+        return outcomes, []
     out = []
-    for first, second in pairs:
-        say(f"fitting {first.name} and {second.name} together …")
+    for _, second in pairs:
+        say(f"fitting {settled.name} and {second.name} together …")
         t0 = time.perf_counter()
-        outcome, fitted[pair_name(first, second)] = try_pair(
-            trial, first, second, fitted, diag.chi2_without, level
+        outcome, fitted[pair_name(settled, second)] = try_pair(
+            trial, settled, second, fitted, diag.chi2_without, level
         )
         outcome = dataclasses.replace(outcome, wall_time=time.perf_counter() - t0)
         say(f"  {outcome_phrase(outcome)}")
         out.append(outcome)
-    return out
+    return outcomes, out
 
 
 def with_interval(trial: Trial, diag: Diagnosis, fitted: dict, say) -> Diagnosis:
@@ -424,7 +438,7 @@ def diagnose(
         platform=platform,
         drive_cycle=cycle,
     )
-    pairs = try_pairs(trial, diag, fitted, level, say)
+    outcomes, pairs = try_pairs(trial, diag, fitted, z_base, level, say)
     diag = with_interval(trial, dataclasses.replace(diag, outcomes=outcomes + pairs), fitted, say)
     wall = time.perf_counter() - t_start
     say(f"done in {wall:.0f} s")

@@ -5,10 +5,11 @@ The best supported single candidate (or, when the encoders found an effect, that
 candidate: it is known to be present) is paired with each of the next
 :data:`PAIR_PARTNERS` supported ones: both start at their own fitted sizes (the film
 half-lengths and the drag torque where the better one put them) and are re-fitted together.
-The pair is judged like a single effect against the model without effects, and in addition
-against its better member alone: the second effect must remove a significant part of what
-the first leaves (an F-test at the same level, and a drop above the Monte Carlo noise) to
-be named.
+Before pairing, the first member is fitted on until its cost settles
+(:func:`settled_single`), since the pair's refit continues its coordinates. The pair is judged
+like a single effect against the model without effects, and in addition against its first
+member so fitted: the second effect must remove a significant part of what the first leaves
+(an F-test at the same level, and a drop above the Monte Carlo noise) to be named.
 """
 
 from __future__ import annotations
@@ -16,7 +17,16 @@ from __future__ import annotations
 import dataclasses
 
 from .result import EffectOutcome
-from .trial import Z95_ONE_SIDED, Trial, difference_sd, f_test, judge_effect, refit
+from .trial import (
+    Z95_ONE_SIDED,
+    Trial,
+    difference_sd,
+    f_test,
+    judge_effect,
+    moves,
+    refit,
+    settled_path,
+)
 
 #: How many of the next supported candidates the best one is paired with.
 PAIR_PARTNERS = 2
@@ -38,6 +48,26 @@ def pair_candidates(
     first = found[0] if found else supported[0]
     partners = [o for o in supported if o is not first]
     return [(first, o) for o in partners[:PAIR_PARTNERS]]
+
+
+def settled_single(
+    trial: Trial, single: EffectOutcome, z_fit, z_base, chi2_without: float, level: float
+) -> tuple[EffectOutcome, object]:
+    """``single`` fitted on from its point ``z_fit`` until its cost settles
+    (:func:`~rattlefit.diagnosis.trial.settled_path`, at most ``trial.base_iterations``), and
+    judged again: the better of the two outcomes and its point. A pair refits the first
+    effect's coordinates beyond its single fit, so the second effect must beat the first fitted
+    as far: in a narrow basin (dry flanks with friction) a few iterations leave the single
+    short of its minimum, and any second dissipative effect then takes up the rest."""
+    path = settled_path(trial, z_fit, trial.held(single.name), iterations=trial.base_iterations)
+    z = path[-1]
+    settled = judge_effect(trial, single.name, chi2_without, z, level)
+    if settled.failure or not settled.chi2_with < single.chi2_with:
+        return single, z_fit
+    settled = dataclasses.replace(
+        settled, wall_time=single.wall_time, moves=moves(trial, z_base, z)
+    )
+    return settled, z
 
 
 def pair_name(first: EffectOutcome, second: EffectOutcome) -> str:
