@@ -73,7 +73,7 @@ class ShaftInertia(Effect):
         s = self.share()
         u, u_dot = state[0], state[1]
         f_shaft = model.mass * w * (w * (u - s * q) + 2.0 * self.damping_ratio * (u_dot - s * v))
-        u_ddot = -f_shaft / (model.mass * (1.0 + self.inertia_ratio)) - s * model.r1 * (
-            drive.acceleration(t)
-        )
+        # the vector field's own call (one computation once traced), not the libm series
+        acc1 = drive.angle_and_acceleration(t)[1]
+        u_ddot = -f_shaft / (model.mass * (1.0 + self.inertia_ratio)) - s * model.r1 * acc1
         return f_shaft, jnp.stack([u_dot, u_ddot])
