@@ -20,6 +20,12 @@ from rattlefit import FitOptions, identify, read_recording, synthesize
 from rattlefit.features.ensemble import band_sigma, chaotic_part, shrunk_correlation
 from rattlefit.features.folded import PHASE_BINS
 from rattlefit.inference import forward
+from rattlefit.inference.across import (
+    combined_starts,
+    group_options,
+    lubrication_groups,
+    lubrication_starts,
+)
 from rattlefit.inference.laplace import debiased_information
 from rattlefit.inference.least_squares import (
     LM_REJECTIONS,
@@ -490,6 +496,80 @@ def test_a_fit_across_lubrications_gives_each_its_film_and_shares_the_oil(
     film = ParameterSpec("a", "m", 1e-5, 1e-3)
     with pytest.raises(rf.RattlefitError, match="'a' is not a parameter of this fit"):
         _problem(recs, FitOptions.quick(priors={"a": film}))
+
+
+def test_a_fit_across_lubrications_starts_where_each_lubrications_own_search_ends(
+    shared_recordings,
+):
+    # boundary, oil jet, boundary (interleaved, so a backlash's index differs between the
+    # joint fit and its lubrication's own): each lubrication's optimum, written in its own
+    # fit's parameters, must reach the joint fit's start unchanged, in SI units
+    names = [
+        "pairII_boundary_65.6_20pct_16Hz",
+        "pairII_oiljet_65.6_20pct_16Hz",
+        "pairII_boundary_65.0_10pct_8Hz",
+    ]
+    recs = [read_recording(shared_recordings / f"{n}.h5") for n in names]
+    min_film = ParameterSpec("min_film", "m", 1e-7, 1e-4, center=3e-6, log_sd=0.1)
+    backlash = ParameterSpec("backlash[2]", "m", 2.9e-4, 3.5e-4, center=3.2e-4, log_sd=0.01)
+    oil_jet_film = ParameterSpec("a[oil_jet]", "m", 1e-4, 5e-3)
+    options = FitOptions.quick(
+        priors={"min_film": min_film, "backlash[2]": backlash, "a[oil_jet]": oil_jet_film}
+    )
+    joint = _problem(recs, options)
+    groups = lubrication_groups(joint.films)
+    assert groups == {"a[boundary]": [0, 2], "a[oil_jet]": [1]}
+    # the joint priors that apply, renamed: backlash[2] is the boundary fit's backlash[1]
+    boundary_options = group_options(options, "a[boundary]", [0, 2])
+    assert set(boundary_options.priors) == {"min_film", "backlash[1]"}
+    assert boundary_options.priors["backlash[1]"].center == 3.2e-4
+    oil_jet_options = group_options(options, "a[oil_jet]", [1])
+    assert set(oil_jet_options.priors) == {"min_film", "a"}
+    assert oil_jet_options.priors["a"].lower == 1e-4
+    # each lubrication's "optimum": distinct values, to see where each one lands
+    own = {
+        "a[boundary]": {
+            "a": 7e-5,
+            "drag_torque": 0.02,
+            "viscosity_scale": 0.8,
+            "stiffness_scale": 1.1,
+            "min_film": 2e-6,
+            "backlash[0]": 7.8e-4,
+            "backlash[1]": 3.1e-4,
+        },
+        "a[oil_jet]": {
+            "a": 9e-4,
+            "drag_torque": 0.03,
+            "viscosity_scale": 1.3,
+            "stiffness_scale": 0.9,
+            "min_film": 4e-6,
+            "backlash[0]": 7.7e-4,
+        },
+    }
+    optima = {}
+    for film, sub_options in (("a[boundary]", boundary_options), ("a[oil_jet]", oil_jet_options)):
+        sub = _problem([recs[r] for r in groups[film]], sub_options)
+        optima[film] = (sub, np.array([s.z_of(own[film][s.name]) for s in sub.specs]))
+    starts = combined_starts(joint, optima)
+    assert starts.shape == (2, len(joint.specs))
+    expected_own = {
+        "a[boundary]": 7e-5,
+        "a[oil_jet]": 9e-4,
+        "backlash[0]": 7.8e-4,
+        "backlash[1]": 7.7e-4,
+        "backlash[2]": 3.1e-4,
+    }
+    for row, donor in zip(starts, ("a[boundary]", "a[oil_jet]"), strict=True):
+        got = {s.name: s.value(z) for s, z in zip(joint.specs, row, strict=True)}
+        for name, value in got.items():
+            want = expected_own.get(name, own[donor].get(name))
+            assert value == pytest.approx(want, rel=1e-4), (donor, name)
+    # one lubrication: no extra starts, and no search run for them
+    single = _problem(recs[:1], FitOptions.quick())
+    assert lubrication_starts(recs[:1], single, FitOptions.quick(), print).shape == (
+        0,
+        len(single.specs),
+    )
 
 
 def test_a_second_set_of_starts_spreads_the_nuisances_over_their_priors(mild_recording):

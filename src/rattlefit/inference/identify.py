@@ -10,8 +10,10 @@ coordinate ``z`` (:mod:`~rattlefit.inference.parameters`).
 The stages, each a function of its own module:
 
 1. the problem and its seeded realisations (:func:`~rattlefit.inference.problem.problem_from`);
-2. the search: seeded starts (:mod:`~rattlefit.inference.starts`), screened, then
-   Levenberg–Marquardt from the best (:func:`~rattlefit.inference.least_squares.refine_starts`);
+2. the search: seeded starts (:mod:`~rattlefit.inference.starts`; across lubrications also
+   where each lubrication's own search ends, :mod:`~rattlefit.inference.across`), screened,
+   then Levenberg–Marquardt from the best
+   (:func:`~rattlefit.inference.least_squares.refine_starts`);
 3. the noise model and Laplace covariance at the optimum
    (:func:`~rattlefit.inference.laplace.laplace_at`);
 4. the free parameters' profile intervals
@@ -33,6 +35,7 @@ import numpy as np
 from ..io.recording import Recording
 from ..reproducibility import platform_info
 from ..util import stamped
+from .across import lubrication_starts
 from .laplace import Laplace, laplace_at
 from .least_squares import LM_REJECTIONS, Refined, refine_starts
 from .options import FitOptions
@@ -214,6 +217,8 @@ def identify(
     starts = starting_points(
         problem, options.n_starts, rng, nuisance_starts=options.experimental.nuisance_starts
     )
+    # a fit across lubrications also starts where each lubrication's own search ends
+    starts = np.concatenate([lubrication_starts(recordings, problem, options, say), starts])
     refined = refine_starts(problem, starts, options, rng, say)
     # the covariance uses more realisations than the search, released from fresh states
     y0 = release_states(
