@@ -79,7 +79,6 @@ from .size import size_intervals
 from .trial import (
     Trial,
     candidate_problem,
-    chi2s,
     costs,
     dry_films,
     final_chi2,
@@ -88,6 +87,7 @@ from .trial import (
     refit,
     residual_rows,
     settled_path,
+    validated,
 )
 
 #: The final χ²s are measured on this many times the fit's covariance realisations: near a
@@ -153,8 +153,7 @@ def refit_without_effects(trial: Trial, z, say) -> tuple[np.ndarray, float, floa
     start = starts[int(np.argmin(cost))]
     path = settled_path(trial, start, trial.held(nuisances=False), iterations=trial.base_iterations)
     refits = np.concatenate([refit(trial, start, trial.held())[None], path])
-    validation = chi2s(trial, refits, trial.validation)
-    k = int(np.argmin(np.where(np.isfinite(validation), validation, np.inf)))
+    k, validation = validated(trial, refits)
     kept = "a and T_b alone" if k == 0 else f"with the nuisances after {2 * k} iterations"
     say(f"  validation χ² {' → '.join(f'{v:.1f}' for v in validation)}: keeping {kept}")
     refit_cost = float(np.sum(residual_rows(trial, refits[k][None]) ** 2))
@@ -163,13 +162,15 @@ def refit_without_effects(trial: Trial, z, say) -> tuple[np.ndarray, float, floa
 
 def fit_effect(trial: Trial, name: str, z_base, say) -> np.ndarray:
     """Effect ``name`` screened from ``z_base`` (:func:`screen`) and fitted with ``a`` and
-    ``drag_torque``, the other effects held absent: the fitted point."""
+    ``drag_torque``, the other effects held absent: the fitted point, or the start where
+    the fit is worse on the validation states (:func:`validated`)."""
     best, cost_without, cost_best = screen(trial, name, z_base)
     say(
         f"  {name}: cost {cost_without:.1f} without, {cost_best:.1f} at the best start; "
         f"fitting it with a and T_b ({trial.iterations} iterations) …"
     )
-    return refit(trial, best, trial.held(name))
+    points = np.stack([refit(trial, best, trial.held(name)), best])
+    return points[validated(trial, points)[0]]
 
 
 def try_effect(

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
+
 from .result import EffectOutcome
 from .trial import (
     Z95_ONE_SIDED,
@@ -26,6 +28,7 @@ from .trial import (
     moves,
     refit,
     settled_path,
+    validated,
 )
 
 #: How many of the next supported candidates the best one is paired with.
@@ -54,13 +57,14 @@ def settled_single(
     trial: Trial, single: EffectOutcome, z_fit, z_base, chi2_without: float, level: float
 ) -> tuple[EffectOutcome, object]:
     """``single`` fitted on from its point ``z_fit`` until its cost settles
-    (:func:`~rattlefit.diagnosis.trial.settled_path`, at most ``trial.base_iterations``), and
-    judged again: the better of the two outcomes and its point. A pair refits the first
+    (:func:`~rattlefit.diagnosis.trial.settled_path`, at most ``trial.base_iterations``; of
+    its points the one :func:`~rattlefit.diagnosis.trial.validated` chooses), and judged
+    again: the better of the two outcomes and its point. A pair refits the first
     effect's coordinates beyond its single fit, so the second effect must beat the first fitted
     as far: in a narrow basin (dry flanks with friction) a few iterations leave the single
     short of its minimum, and any second dissipative effect then takes up the rest."""
     path = settled_path(trial, z_fit, trial.held(single.name), iterations=trial.base_iterations)
-    z = path[-1]
+    z = path[validated(trial, path)[0]]
     settled = judge_effect(trial, single.name, chi2_without, z, level)
     if settled.failure or not settled.chi2_with < single.chi2_with:
         return single, z_fit
@@ -105,10 +109,12 @@ def try_pair(
     level: float,
 ) -> tuple[EffectOutcome, object]:
     """The two effects fitted together from their single fits (``fitted``: name → fitted
-    point) and judged: the outcome (named ``"<first>+<second>"``) and its fitted point."""
+    point; the fit or its start, whichever :func:`~rattlefit.diagnosis.trial.validated`
+    chooses) and judged: the outcome (named ``"<first>+<second>"``) and its point."""
     name = pair_name(first, second)
     z0 = pair_start(trial, second.name, fitted[first.name], fitted[second.name])
-    z_fit = refit(trial, z0, trial.held(name))
+    points = np.stack([refit(trial, z0, trial.held(name)), z0])
+    z_fit = points[validated(trial, points)[0]]
     outcome = judge_effect(trial, name, chi2_without, z_fit, level)
     if outcome.failure:
         return outcome, z_fit

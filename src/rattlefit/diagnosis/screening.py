@@ -15,7 +15,7 @@ import numpy as np
 from ..inference.parameters import Z_END
 from ..inference.problem import Problem
 from ..physics.effects import effect_class
-from .trial import Trial, costs
+from .trial import Trial, costs, validated
 
 #: Where each effect field is screened before the fit: decades below the top of its range
 #: (each range's top is a generous size for a production gearbox, so the sizes worth finding
@@ -138,8 +138,10 @@ def shape_indices(trial: Trial, name: str) -> list[int]:
 def screen(trial: Trial, name: str, z_base) -> tuple[np.ndarray, float, float]:
     """The best start for effect ``name`` from ``z_base`` (every effect absent), by
     successive halving: every distinct screening point (:func:`screen_points`) costed on the
-    first :data:`SCREEN_REALISATIONS` realisations, the :data:`SCREEN_FINALISTS` cheapest on
-    all of them. Returns the start, the cost at ``z_base`` and the start's (both on all)."""
+    first :data:`SCREEN_REALISATIONS` realisations, the :data:`SCREEN_FINALISTS` cheapest
+    then compared on the validation states (:func:`~rattlefit.diagnosis.trial.validated`).
+    Returns the start, the cost at ``z_base`` and the start's (both on all the fit's
+    realisations)."""
     points = screen_points(
         z_base, trial.candidates[name], trial.problem, shape=shape_indices(trial, name)
     )
@@ -148,5 +150,5 @@ def screen(trial: Trial, name: str, z_base) -> tuple[np.ndarray, float, float]:
     rough = costs(trial, starts, realisations=np.arange(m))
     finalists = starts[np.argsort(rough, kind="stable")[:SCREEN_FINALISTS]]
     cost = costs(trial, np.concatenate([z_base[None], finalists]))
-    k = int(np.argmin(cost[1:]))
+    k, _ = validated(trial, finalists)
     return finalists[k], float(cost[0]), float(cost[1 + k])

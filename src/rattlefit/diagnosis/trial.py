@@ -176,6 +176,17 @@ def chi2s(trial: Trial, zs, y0=None) -> np.ndarray:
     return np.array([np.sum(whitened_rows(trial, m) ** 2) for m in means])
 
 
+def validated(trial: Trial, zs) -> tuple[int, np.ndarray]:
+    """Which of the points ``zs`` (K, P) has the lowest χ² on the validation release states
+    (``trial.validation``; the fresh states when there are none), and the K values (+inf where
+    a simulation failed). A fit on the few realisations of the search can settle where a
+    rare regime of those few happens to match the recording; points are chosen out of
+    sample, and judged on yet other states (:func:`judge_effect`)."""
+    values = chi2s(trial, np.asarray(zs, dtype=float), trial.validation)
+    values = np.where(np.isfinite(values), values, np.inf)
+    return int(np.argmin(values)), values
+
+
 def final_chi2(trial: Trial, z) -> tuple[float, np.ndarray]:
     """χ² of the data rows at ``z`` on the fresh release states, and the mean features."""
     mean = fresh_means(trial, np.asarray(z)[None])[0]
