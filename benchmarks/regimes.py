@@ -39,7 +39,7 @@ from rattlefit.features.spectra import spectral_features
 from rattlefit.physics.model import DEFAULT_MIN_FILM, RattleParams
 from rattlefit.simulation.reference import simulate_reference
 from rattlefit.simulation.solve import broadcast_params, simulate_batch
-from run import operating_points, truth_params  # benchmarks/run.py: the shared files
+from studies import operating_points, truth_params  # the shared files
 
 #: (label, field of RattleParams, factor on the truth) for ``--variants``
 VARIANTS = (

@@ -59,7 +59,7 @@ def main(argv=None) -> int:
         broadcast_params,
         simulate_batch,
     )
-    from run import operating_points, truth_params  # benchmarks/run.py: the shared files
+    from studies import operating_points, truth_params  # the shared files
 
     m = args.realisations
     print(f"seed {args.seed}, {m} realisations, fit rtol {args.rtol}", flush=True)

@@ -40,7 +40,7 @@ def main(argv=None) -> int:
 
     from rattlefit.physics.model import share_stiffness_tables
     from rattlefit.simulation.solve import broadcast_params, solve_rows
-    from run import operating_points, truth_params  # benchmarks/run.py: the shared files
+    from studies import operating_points, truth_params  # the shared files
 
     [(_, setup, truth)] = operating_points([NAME])
     params = truth_params(setup, truth)

@@ -1,5 +1,6 @@
 """What the studies in this directory share: `--set FIELD=JSON` overrides of `FitOptions`,
-their JSON reports written whole, the checkout's commit, and an interval's log width."""
+their JSON reports written whole, the checkout's commit, an interval's log width, and the
+shared recordings with their truth."""
 
 from __future__ import annotations
 
@@ -8,9 +9,13 @@ import json
 import math
 import os
 import subprocess
+from pathlib import Path
 
 from rattlefit.inference.options import FLAT_FIELDS
 from rattlefit.inference.parameters import default_specs
+
+#: The independent simulator's recordings and their truth (``truth.json``).
+RECORDINGS = Path(__file__).resolve().parents[2] / "shared" / "recordings"
 
 #: Where a lower end reported as 0 (a one-sided interval) stands: the range's lower end.
 RANGE_LOW = {s.name: s.lower for s in default_specs([], {})}
@@ -67,3 +72,24 @@ def log_width(p: dict, name: str) -> float:
     """The log width of interval ``p`` (``identify``'s JSON ``parameters[name]``); a lower end
     reported as 0 stands for the range's lower end (:data:`RANGE_LOW`)."""
     return math.log(p["upper"] / (p["lower"] if p["lower"] > 0 else RANGE_LOW[name]))
+
+
+def operating_points(names):
+    """(name, RigSetup, truth dict) of each recording, in the order given."""
+    from rattlefit.inference import rig
+    from rattlefit.io.recording import read_recording
+
+    truth = json.loads((RECORDINGS / "truth.json").read_text())
+    return [(n, rig.setup(read_recording(RECORDINGS / f"{n}.h5")), truth[n]) for n in names]
+
+
+def truth_params(setup, truth):
+    """The RattleParams of a recording's truth (``truth.json``) on its rig ``setup``."""
+    from rattlefit.physics.model import RattleParams
+
+    return RattleParams(
+        truth["a_mm"] * 1e-3,
+        truth["drag_torque_Nm"],
+        truth["viscosity_Pa_s"],
+        setup.geometry.backlash,
+    )
