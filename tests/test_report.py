@@ -79,6 +79,10 @@ def test_a_joint_fit_names_the_recording_the_model_does_not_explain():
     both = _result(100.0, 57, chi2_recordings=[50.0, 50.0], recordings=files)
     assert both.poor_fit and both.poorly_fitted == []
     assert "does not explain these recordings together" in format_table(both)
+    # recordings made in memory (rf.synthesize) have no file: named by their place
+    memory = _result(430.0, 57, chi2_recordings=[30.0, 400.0], recordings=["None", "None"])
+    assert memory.recording_names == ["recording 1", "recording 2"]
+    assert "does not explain recording 2 within" in format_table(memory)
 
 
 def test_a_recording_in_a_minority_regime_is_named():

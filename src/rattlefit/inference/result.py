@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
+from pathlib import PurePath
 
 import jax.numpy as jnp
 import numpy as np
@@ -161,6 +162,15 @@ class FitResult:
         share = max(self.dof, 1) / max(len(self.chi2_recordings), 1)
         return [
             k for k, c in enumerate(self.chi2_recordings) if stats.chi2.sf(c, share) < POOR_FIT_P
+        ]
+
+    @property
+    def recording_names(self) -> list[str]:
+        """Each recording's file name, or ``"recording k"`` (from 1) for one made in memory
+        (:func:`~rattlefit.simulation.synthetic.synthesize`), which has no file."""
+        return [
+            PurePath(p).name if p not in (None, "None") else f"recording {k + 1}"
+            for k, p in enumerate(self.recordings)
         ]
 
     def rattle_params(self, k: int = 0) -> RattleParams:

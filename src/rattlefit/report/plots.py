@@ -276,7 +276,7 @@ def plot_diagnosis(
         ax.axhline(0, color="0.4", lw=0.6)
         ax.set_ylabel("(measured − model)/σ")
         ax.set_xlabel("band centre (Hz)")
-        name = Path(diag.baseline.recordings[k]).name
+        name = diag.baseline.recording_names[k]
         ax.set_title(f"{name}: band residuals (shaded: within ±{MISSED_Z:g} σ)")
         ax.legend(fontsize=8)
     ax = axes[-1, 0]
@@ -297,7 +297,7 @@ def plot_diagnosis(
     fig.tight_layout()
     out = [_save(fig, directory / "diagnosis.png")]
     if diag.drive_cycle is not None:
-        names = [Path(p).name for p in diag.baseline.recordings]
+        names = diag.baseline.recording_names
         fig = draw_drive_cycle(diag.drive_cycle.as_dict(), names)
         out.append(_save(fig, directory / "drive_cycle.png"))
     for k, rec in enumerate(recordings):

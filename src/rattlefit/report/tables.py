@@ -3,8 +3,6 @@ first in a terminal."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from ..diagnosis.result import MISSED_Z, Diagnosis
@@ -56,7 +54,7 @@ def format_table(result: FitResult) -> str:
         if share < 0.5:
             which = "the recording"
             if len(result.recordings) > 1:
-                which = Path(result.recordings[k]).name
+                which = result.recording_names[k]
             lines.append(
                 f"note: {which} is in a regime that {share:.0%} of the model's releases reach "
                 "at the fitted parameters (the others settle into another); the fit compares it "
@@ -67,7 +65,7 @@ def format_table(result: FitResult) -> str:
         which = "this recording"
         widened = f"√(χ²/dof) = {(result.chi2 / result.dof) ** 0.5:.1f}"
         if len(result.chi2_recordings) > 1:
-            poor = [Path(result.recordings[k]).name for k in result.poorly_fitted]
+            poor = [result.recording_names[k] for k in result.poorly_fitted]
             which = ", ".join(poor) if poor else "these recordings together"
             widened = "each recording's own √(χ²/dof)"
         lines.append(
