@@ -71,7 +71,7 @@ from ..physics.effects import EFFECTS, effect_class
 from ..reproducibility import platform_info
 from ..util import stamped
 from .cycle import cycle_gap
-from .evidence import ENCODER_VISIBLE, findings
+from .evidence import ENCODER_VISIBLE, FOUND_ONLY, findings
 from .pairs import pair_candidates, pair_name, settled_single, try_pair
 from .result import Diagnosis, EffectOutcome, baseline_warnings, finding_phrase
 from .screening import distinct_rows, free_alternatives, screen
@@ -246,16 +246,19 @@ def in_program(options: DiagnoseOptions, seen: set[str]) -> tuple[str, ...]:
 def effects_to_try(
     options: DiagnoseOptions, seen: set[str], band_gap: bool
 ) -> tuple[list[str], dict[str, str]]:
-    """The effects fitted to the band spectrum, and why each other one is not: an effect the
-    encoders see is named only when they see it, and a band candidate only explains a
-    significant band gap (unless ``options.every_effect``)."""
+    """The effects fitted to the band spectrum, and why each other one is not: an effect
+    with a model-free test (:data:`~rattlefit.diagnosis.evidence.FOUND_ONLY`) is named only
+    when that test finds it, and a band candidate only explains a significant band gap
+    (unless ``options.every_effect``)."""
     tried, skipped = [], {}
     for name in options.effects:
         if options.every_effect:
             tried.append(name)
         elif name in ENCODER_VISIBLE and name not in seen:
             skipped[name] = "the encoders show no sign of it"
-        elif name not in ENCODER_VISIBLE and not band_gap:
+        elif name in FOUND_ONLY and name not in seen:
+            skipped[name] = "the recording shows no drift (its trend test finds none)"
+        elif name not in FOUND_ONLY and not band_gap:
             skipped[name] = "the model without effects fits the band spectrum within its noise"
         else:
             tried.append(name)

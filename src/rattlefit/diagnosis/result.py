@@ -9,7 +9,7 @@ import numpy as np
 from scipy import stats
 
 from ..inference.result import FitResult
-from .evidence import ENCODER_VISIBLE, Finding
+from .evidence import FOUND_ONLY, Finding
 
 if TYPE_CHECKING:
     from .cycle import CycleGap
@@ -190,9 +190,9 @@ class Diagnosis:
     def explaining(self) -> EffectOutcome | None:
         """The band candidate that explains the band gap: supported, leaving a misfit
         consistent with noise (``p_after`` ≥ significance) or removing at least
-        :data:`CLOSES_MOST` of the excess misfit; for an effect the encoders see
-        (:data:`~rattlefit.diagnosis.evidence.ENCODER_VISIBLE`), found by its model-free
-        test too; holding every effect of :attr:`seen_in_bands` (another effect is named
+        :data:`CLOSES_MOST` of the excess misfit; for an effect with a model-free test
+        (:data:`~rattlefit.diagnosis.evidence.FOUND_ONLY`), found by that test too;
+        holding every effect of :attr:`seen_in_bands` (another effect is named
         beside a seen one only when the two together close clearly more than the seen one
         alone); two effects together only when they close clearly more than the better
         alone (``beyond_single``); the least misfit first; None when there is no band gap
@@ -205,7 +205,7 @@ class Diagnosis:
             for o in self.outcomes
             if o.supported
             and (o.p_after >= self.significance or o.gap_closed >= CLOSES_MOST)
-            and all(n not in ENCODER_VISIBLE or n in seen for n in o.effects)
+            and all(n not in FOUND_ONLY or n in seen for n in o.effects)
             and present <= set(o.effects)
             and (len(o.effects) == 1 or o.beyond_single)
         ]
