@@ -149,6 +149,6 @@ def screen(trial: Trial, name: str, z_base) -> tuple[np.ndarray, float, float]:
     m = min(SCREEN_REALISATIONS, trial.problem.y0.shape[1])
     rough = costs(trial, starts, realisations=np.arange(m))
     finalists = starts[np.argsort(rough, kind="stable")[:SCREEN_FINALISTS]]
-    cost = costs(trial, np.concatenate([z_base[None], finalists]))
     k, _ = validated(trial, finalists)
-    return finalists[k], float(cost[0]), float(cost[1 + k])
+    cost = costs(trial, np.stack([z_base, finalists[k]]))
+    return finalists[k], float(cost[0]), float(cost[1])

@@ -32,6 +32,13 @@ def lubrication_groups(films: Sequence[str]) -> dict[str, list[int]]:
     return groups
 
 
+def backlash_index(name: str) -> int | None:
+    """The recording index of a backlash parameter (``"backlash[2]"`` → 2), else None."""
+    if not name.startswith("backlash["):
+        return None
+    return int(name[len("backlash[") : -1])
+
+
 def group_name(joint_name: str, film: str, members: Sequence[int]) -> str | None:
     """The name a joint parameter has in the fit of one lubrication's recordings ``members``
     (whose film half-length the joint fit calls ``film``); None if that fit lacks it."""
@@ -39,8 +46,8 @@ def group_name(joint_name: str, film: str, members: Sequence[int]) -> str | None
         return "a"
     if joint_name.startswith("a["):
         return None  # another lubrication's film half-length
-    if joint_name.startswith("backlash["):
-        r = int(joint_name[len("backlash[") : -1])
+    r = backlash_index(joint_name)
+    if r is not None:
         return f"backlash[{members.index(r)}]" if r in members else None
     return joint_name
 
@@ -61,9 +68,8 @@ def owner_of(joint_name: str, films: Sequence[str], donor: str) -> str:
     and a backlash's own, the ``donor``'s for a shared parameter."""
     if joint_name in films:
         return joint_name
-    if joint_name.startswith("backlash["):
-        return films[int(joint_name[len("backlash[") : -1])]
-    return donor
+    r = backlash_index(joint_name)
+    return donor if r is None else films[r]
 
 
 def combined_starts(problem: Problem, optima: dict[str, tuple[Problem, np.ndarray]]) -> np.ndarray:
