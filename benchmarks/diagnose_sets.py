@@ -57,6 +57,7 @@ import numpy as np
 
 from rattlefit.io.recording import OperatingPoint, write_recording
 from rattlefit.physics.drive import Drive
+from rattlefit.physics.effects import EFFECTS, mechanism_of
 from rattlefit.physics.geometry import DEFAULT_STIFFNESS_SHAPE, GearGeometry, table2_pair
 from rattlefit.physics.model import DEFAULT_MIN_FILM, Effect, RattleModel, RattleParams
 from rattlefit.physics.oil import KELVIN, dynamic_viscosity, walther_coefficients
@@ -77,7 +78,7 @@ FILM = {"dry": 0.0, "boundary": 0.085e-3, "oil_jet": 1.0e-3}
 #: Acceptable verdicts of a recording without an unmodelled effect.
 CLEAN = ("none", "unexplained")
 #: The catalogue's candidates for dissipation in contact: any of them names it rightly.
-DISSIPATION = ("flank_friction", "mesh_damping", "pitch_point_friction")
+DISSIPATION = tuple(n for n in EFFECTS if mechanism_of(n) == "dissipation in contact")
 #: Impact speed at which a speed-dependent restitution is stated, m/s: the median contact-onset
 #: speed of the dry operating points used here (50–110 mm/s).
 IMPACT_SPEED = 0.08

@@ -36,14 +36,13 @@ from collections import Counter
 from pathlib import Path
 
 import rattlefit as rf
+from diagnose_sets import DISSIPATION, clean_set, injected_set
 from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
 from rattlefit.diagnosis.evidence import POINTS_TO, findings
 from studies import write_json
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared" / "recordings"
-#: The dissipation-in-contact class: any of these names dissipation in contact rightly.
-DISSIPATION = ("flank_friction", "mesh_damping", "pitch_point_friction")
 CLEAN = ("none", "unexplained")
 #: The shared truth's effect names, as the verdicts that count as right.
 SHARED_EXPECTED = {"runout": ("runout",), "sliding_friction": DISSIPATION}
@@ -68,9 +67,7 @@ def shared_cases() -> list[dict]:
 
 def set_cases(which: str) -> list[dict]:
     """The cases of ``diagnose_sets``' set ``which`` (built first if missing)."""
-    import diagnose_sets
-
-    build = {"clean": diagnose_sets.clean_set, "injected": diagnose_sets.injected_set}[which]
+    build = {"clean": clean_set, "injected": injected_set}[which]
     kwargs = {"include_shared": False} if which == "clean" else {}
     return [
         {

@@ -355,6 +355,47 @@ def test_two_effects_are_named_together_only_when_they_close_clearly_more_than_e
     assert json.loads(json.dumps(pair.as_dict(), allow_nan=False))["beyond_single"] == beyond
 
 
+# Measured outcomes (band gap, then each candidate's χ² with it and p after) of two shared
+# recordings of the independent simulator: the clean pair I oil-jet file, whose modest
+# model-form gap three candidates of two mechanisms close alike, and the pair I dry file with
+# flank friction, where only the dissipation in contact closes it.
+CLEAN_OILJET = (
+    56.19,
+    [
+        ("flank_friction", 29.94, 0.317),
+        ("speed_dependent_drag", 36.0, 0.115),
+        ("mesh_damping", 37.34, 0.0888),
+    ],
+)
+DRY_FRICTION = (
+    586.54,
+    [
+        ("flank_friction", 19.6, 0.845),
+        ("mesh_damping", 24.3, 0.615),
+        ("speed_dependent_drag", 72.9, 4.26e-6),
+    ],
+)
+
+
+@pytest.mark.parametrize(
+    ("case", "named"), [(CLEAN_OILJET, None), (DRY_FRICTION, "flank_friction")]
+)
+def test_a_gap_that_candidates_of_different_mechanisms_close_alike_is_not_named(case, named):
+    chi2_without, rows = case
+    outcomes = [_outcome(n, chi2_without, c, p) for n, c, p in rows]
+    diag = _diagnosis_of(outcomes, chi2_without)
+    assert diag.closing() is outcomes[0]  # the least misfit closes it either way
+    if named is None:
+        assert diag.verdict.kind == "unexplained" and diag.explaining() is None
+        assert [o.name for o in diag.indistinguishable()] == [n for n, _, _ in rows]
+        assert "cannot tell them apart" in diag.verdict.sentence
+        doc = diag.to_json()
+        assert doc["indistinguishable"] == [n for n, _, _ in rows]
+    else:
+        # mesh damping is another form of the same mechanism; the drag leaves a significant rest
+        assert diag.rivals() == [] and diag.verdict.effects == (named,)
+
+
 def _runout_finding():
     from rattlefit.diagnosis.evidence import Finding
     from rattlefit.features.orders import AngleTest

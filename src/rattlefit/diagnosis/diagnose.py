@@ -37,7 +37,9 @@ The verdict (:class:`~rattlefit.diagnosis.result.Verdict`) is ``"none"`` when th
 without extra effects fits the band spectrum (its χ² after the re-fit, on the fresh
 realisations, has p ≥ ``significance``) and its drive-cycle statistics, and no model-free
 test stands out; the effects that significant model-free tests point to are named; a band
-candidate is named when it is supported and leaves a misfit consistent with noise, and,
+candidate is named when it is supported and leaves a misfit consistent with noise, no
+candidate of another mechanism does too
+(:meth:`~rattlefit.diagnosis.result.Diagnosis.rivals`), and,
 beside an effect the encoders found, only together with that effect (it is known to be
 there, so the other candidate must close clearly more than it alone); a significant gap
 that nothing explains is ``"unexplained"``.

@@ -9,6 +9,7 @@ import numpy as np
 from scipy import stats
 
 from ..inference.result import FitResult
+from ..physics.effects import mechanism_of
 from .evidence import FOUND_ONLY, Finding
 
 if TYPE_CHECKING:
@@ -187,29 +188,70 @@ class Diagnosis:
         fitted = {o.name for o in self.outcomes if not o.failure and "+" not in o.name}
         return self.seen & fitted
 
-    def explaining(self) -> EffectOutcome | None:
-        """The band candidate that explains the band gap: supported, leaving a misfit
-        consistent with noise (``p_after`` ≥ significance) or removing at least
-        :data:`CLOSES_MOST` of the excess misfit; for an effect with a model-free test
-        (:data:`~rattlefit.diagnosis.evidence.FOUND_ONLY`), found by that test too;
-        holding every effect of :attr:`seen_in_bands` (another effect is named
-        beside a seen one only when the two together close clearly more than the seen one
-        alone); two effects together only when they close clearly more than the better
-        alone (``beyond_single``); the least misfit first; None when there is no band gap
-        or no candidate closes it."""
+    def nameable(self, o: EffectOutcome) -> bool:
+        """``o`` could be named: supported; for an effect with a model-free test
+        (:data:`~rattlefit.diagnosis.evidence.FOUND_ONLY`), found by that test too; holding
+        every effect of :attr:`seen_in_bands` (another effect is named beside a seen one only
+        when the two together close clearly more than the seen one alone); two effects
+        together only when they close clearly more than the better alone
+        (``beyond_single``)."""
+        return (
+            o.supported
+            and all(n not in FOUND_ONLY or n in self.seen for n in o.effects)
+            and self.seen_in_bands <= set(o.effects)
+            and (len(o.effects) == 1 or o.beyond_single)
+        )
+
+    def within_noise(self, o: EffectOutcome) -> bool:
+        """``o`` is nameable (:meth:`nameable`) and leaves a misfit consistent with noise."""
+        return self.nameable(o) and not o.failure and o.p_after >= self.significance
+
+    def closing(self) -> EffectOutcome | None:
+        """The band candidate that closes the band gap best: nameable (:meth:`nameable`),
+        leaving a misfit consistent with noise (``p_after`` ≥ significance) or removing at
+        least :data:`CLOSES_MOST` of the excess misfit; the least misfit first; None when
+        there is no band gap or no candidate closes it."""
         if not self.band_gap:
             return None
-        seen, present = self.seen, self.seen_in_bands
         closing = [
             o
             for o in self.outcomes
-            if o.supported
-            and (o.p_after >= self.significance or o.gap_closed >= CLOSES_MOST)
-            and all(n not in FOUND_ONLY or n in seen for n in o.effects)
-            and present <= set(o.effects)
-            and (len(o.effects) == 1 or o.beyond_single)
+            if self.nameable(o) and (o.p_after >= self.significance or o.gap_closed >= CLOSES_MOST)
         ]
         return min(closing, key=lambda o: o.chi2_with) if closing else None
+
+    def rivals(self) -> list[EffectOutcome]:
+        """Nameable candidates of another mechanism than :meth:`closing`'s
+        (:func:`~rattlefit.physics.effects.mechanism_of`) that also leave a misfit consistent
+        with noise: the band spectrum cannot tell them from it."""
+        best = self.closing()
+        if best is None:
+            return []
+        held = {mechanism_of(n) for n in best.effects}
+        return [
+            o
+            for o in self.outcomes
+            if o is not best
+            and self.within_noise(o)
+            and not {mechanism_of(n) for n in o.effects} <= held
+        ]
+
+    def indistinguishable(self) -> list[EffectOutcome]:
+        """When there are :meth:`rivals`: the candidate that closes the band gap and every
+        other nameable one that leaves a misfit consistent with noise, the least misfit first
+        (empty otherwise)."""
+        if not self.rivals():
+            return []
+        best = self.closing()
+        alike = [o for o in self.outcomes if o is not best and self.within_noise(o)]
+        return [best, *sorted(alike, key=lambda o: o.chi2_with)]
+
+    def explaining(self) -> EffectOutcome | None:
+        """The band candidate that explains the band gap: the one that closes it
+        (:meth:`closing`) when no candidate of another mechanism also leaves a misfit
+        consistent with noise (:meth:`rivals`): a gap that several physics close alike is
+        a model-form difference as likely as any of them. None otherwise."""
+        return None if self.rivals() else self.closing()
 
     @property
     def verdict(self) -> Verdict:
@@ -226,6 +268,7 @@ class Diagnosis:
             "band_gap": v.band_gap,
             "gap_chi2": dict(zip(("chi2", "dof", "p_value"), self.gap_chi2, strict=True)),
             "band_gap_explained": v.band_gap_explained,
+            "indistinguishable": [o.name for o in self.indistinguishable()],
             "significance": self.significance,
             "findings": [f.as_dict() for f in self.findings],
             "skipped": dict(self.skipped),
@@ -326,6 +369,31 @@ def finding_phrase(f: Finding) -> str:
     return f"{f.effect} ({t.name}: {size}, p = {t.p_value:.2g})"
 
 
+def unexplained_gap(diag: Diagnosis, fit_words: str, cycle_words: str) -> str:
+    """The sentence of a significant band gap that no candidate is named for: candidates of
+    different mechanisms close it alike (:meth:`Diagnosis.indistinguishable`), or none
+    closes it (the least misfit any leaves is given)."""
+    cycle = f"; {cycle_words}" if cycle_words else ""
+    alike = diag.indistinguishable()
+    if alike:
+        names = ", ".join(o.name for o in alike[:-1]) + f" and {alike[-1].name}"
+        left = ", ".join(f"{o.chi2_with:.1f}" for o in alike)
+        return (
+            f"A significant gap that candidates of different mechanisms close alike: "
+            f"{fit_words}; {names} each leave a misfit within the noise (χ² {left}), so the "
+            f"band spectrum cannot tell them apart, nor from a model-form difference{cycle}."
+        )
+    judged = [o for o in diag.outcomes if not o.failure]
+    best = min(judged, key=lambda o: o.chi2_with, default=None)
+    tried = (
+        ""
+        if best is None
+        else f"; the candidate that leaves the least misfit, {best.name}, leaves "
+        f"χ² {best.chi2_with:.1f} (p = {best.p_after:.2g})"
+    )
+    return f"A significant gap that no candidate explains: {fit_words}{tried}{cycle}."
+
+
 def verdict_of(diag: Diagnosis) -> Verdict:
     """The :class:`Verdict` of ``diag``: effects named by significant model-free findings,
     then the band candidate that explains the band gap (:meth:`Diagnosis.explaining`)."""
@@ -357,16 +425,7 @@ def verdict_of(diag: Diagnosis) -> Verdict:
         )
     elif not names:
         kind = "unexplained"
-        judged = [o for o in diag.outcomes if not o.failure]
-        best = min(judged, key=lambda o: o.chi2_with, default=None)
-        tried = (
-            ""
-            if best is None
-            else f"; the candidate that leaves the least misfit, {best.name}, leaves "
-            f"χ² {best.chi2_with:.1f} (p = {best.p_after:.2g})"
-        )
-        cycle = f"; {cycle_words}" if cycle_words else ""
-        sentence = f"A significant gap that no candidate explains: {fit_words}{tried}{cycle}."
+        sentence = unexplained_gap(diag, fit_words, cycle_words)
     else:
         kind = "effect" if len(names) == 1 else "effects"
         parts = [finding_phrase(f) for _, f in found]

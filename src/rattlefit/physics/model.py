@@ -262,14 +262,17 @@ class Effect(eqx.Module):
     * :meth:`initial_state` — its state at the start, given the model's ``(q, v)`` there
       (zero by default).
 
-    Three class attributes let :mod:`rattlefit.diagnosis.diagnose` fit the effect: ``name``
-    (its short name), ``ranges`` (fitted field → (unit, lower, upper)) and ``shape_fields``
-    (the fields that shape the effect without sizing it, e.g. a frequency). The lower ends
+    Four class attributes let :mod:`rattlefit.diagnosis.diagnose` fit and judge the effect:
+    ``name`` (its short name), ``ranges`` (fitted field → (unit, lower, upper)),
+    ``shape_fields`` (the fields that shape the effect without sizing it, e.g. a frequency)
+    and ``mechanism`` (the physics it stands for, shared by candidates that are other forms
+    of one mechanism, e.g. ``"dissipation in contact"``; default: its name). The lower ends
     of the other fields' ranges stand for the effect being absent, whatever the shape fields
     are. :mod:`rattlefit.physics.effects` holds the catalogue.
     """
 
     name: ClassVar[str] = "effect"
+    mechanism: ClassVar[str | None] = None
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {}
     shape_fields: ClassVar[tuple[str, ...]] = ()
     states: ClassVar[int] = 0

@@ -52,6 +52,7 @@ __all__ = [
     "ViscosityDrift",
     "absent",
     "effect_class",
+    "mechanism_of",
 ]
 
 
@@ -87,3 +88,10 @@ def effect_class(name: str) -> type[Effect]:
     except KeyError:
         known = ", ".join(sorted(EFFECTS))
         raise RattlefitError(f"unknown effect {name!r}; known effects: {known}") from None
+
+
+def mechanism_of(name: str) -> str:
+    """The physics the effect ``name`` stands for (its class's ``mechanism``, else its name):
+    candidates of one mechanism are other forms of the same thing."""
+    cls = effect_class(name)
+    return cls.mechanism or cls.name

@@ -24,6 +24,7 @@ class FlankFriction(Effect):
     """
 
     name: ClassVar[str] = "flank_friction"
+    mechanism: ClassVar[str] = "dissipation in contact"
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {"coefficient": ("1", 1e-6, 1.0)}
 
     coefficient: Scalar = parameter_field()

@@ -47,6 +47,7 @@ class MeshDamping(Effect):
     """
 
     name: ClassVar[str] = "mesh_damping"
+    mechanism: ClassVar[str] = "dissipation in contact"
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {"damping_ratio": ("1", 1e-7, 0.3)}
 
     damping_ratio: Scalar = parameter_field()

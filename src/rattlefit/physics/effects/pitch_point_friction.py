@@ -42,6 +42,7 @@ class PitchPointFriction(Effect):
     """
 
     name: ClassVar[str] = "pitch_point_friction"
+    mechanism: ClassVar[str] = "dissipation in contact"
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {"coefficient": ("1", 1e-6, 1.0)}
 
     coefficient: Scalar = parameter_field()

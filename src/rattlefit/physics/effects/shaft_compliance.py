@@ -21,6 +21,7 @@ class ShaftCompliance(Effect):
     """
 
     name: ClassVar[str] = "shaft_compliance"
+    mechanism: ClassVar[str] = "shaft flexibility"
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {"compliance": ("m/N", 1e-15, 1e-7)}
 
     compliance: Scalar = parameter_field()

@@ -47,6 +47,7 @@ class ShaftInertia(Effect):
     """
 
     name: ClassVar[str] = "shaft_inertia"
+    mechanism: ClassVar[str] = "shaft flexibility"
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {
         "inertia_ratio": ("1", 1e-7, 10.0),
         "frequency": ("Hz", 100.0, 2000.0),
