@@ -17,14 +17,12 @@ asks for ≥ 2), whether the truth is inside, and the wall times.
 from __future__ import annotations
 
 import argparse
-import json
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 from rattlefit.reproducibility import platform_info
-from studies import head_commit, log_width, write_json
+from studies import head_commit, identified, log_width, write_json
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "recordings"
@@ -54,20 +52,6 @@ def synthetic_long(directory: Path) -> Path:
             check=True,
         )  # fmt: skip
     return path
-
-
-def identified(path: Path, features: str, out: Path) -> tuple[dict, float | None]:
-    """The identify JSON of ``path`` with ``features`` at ``out`` (run when absent), and the
-    process's wall time (None when it was read)."""
-    if out.exists():
-        return json.loads(out.read_text()), None
-    t0 = time.perf_counter()
-    subprocess.run(
-        [sys.executable, "-m", "rattlefit.cli", "identify", str(path), "--features", features,
-         "-q", "-o", str(out)],
-        check=True, stdout=subprocess.DEVNULL,
-    )  # fmt: skip
-    return json.loads(out.read_text()), time.perf_counter() - t0
 
 
 def widths(doc: dict, truth: dict) -> dict:

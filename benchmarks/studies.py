@@ -9,6 +9,8 @@ import json
 import math
 import os
 import subprocess
+import sys
+import time
 from pathlib import Path
 
 from rattlefit.inference.options import FLAT_FIELDS
@@ -58,6 +60,21 @@ def write_json(path: str, doc: dict, **dump_options) -> None:
     with open(tmp, "w") as fh:
         json.dump(doc, fh, indent=2, **dump_options)
     os.replace(tmp, path)
+
+
+def identified(path: Path, features: str, out: Path, extra=()) -> tuple[dict, float | None]:
+    """The JSON of ``rattlefit identify PATH --features FEATURES [EXTRA…] -o OUT`` with the
+    default options otherwise (run when ``out`` is absent), and the process's wall time
+    (None when it was read)."""
+    if out.exists():
+        return json.loads(out.read_text()), None
+    t0 = time.perf_counter()
+    subprocess.run(
+        [sys.executable, "-m", "rattlefit.cli", "identify", str(path), "--features", features,
+         *extra, "-q", "-o", str(out)],
+        check=True, stdout=subprocess.DEVNULL,
+    )  # fmt: skip
+    return json.loads(out.read_text()), time.perf_counter() - t0
 
 
 def head_commit() -> str:

@@ -17,7 +17,8 @@ The stages, each a function of its own module:
 3. the noise model and Laplace covariance at the optimum
    (:func:`~rattlefit.inference.laplace.laplace_at`);
 4. the free parameters' profile intervals
-   (:func:`~rattlefit.inference.profile.profile_stage`);
+   (:func:`~rattlefit.inference.profile.profile_stage`), and each boundary film's
+   squeeze-film group's (:mod:`~rattlefit.inference.group`);
 5. the result (:mod:`~rattlefit.inference.result`).
 
 The method's rationale is in ``docs/identification.md``.
@@ -36,6 +37,7 @@ from ..io.recording import Recording
 from ..reproducibility import platform_info
 from ..util import stamped
 from .across import lubrication_starts
+from .group import group_estimates
 from .laplace import Laplace, laplace_at
 from .least_squares import LM_REJECTIONS, Refined, refine_starts
 from .options import FitOptions
@@ -47,7 +49,7 @@ from .profile import (
     profile_stage,
     span_profile_points,
 )
-from .result import FitResult, estimates_of, profiles_in_si
+from .result import FitResult, estimates_of, profiles_in_si, with_groups
 from .starts import starting_points
 
 
@@ -137,9 +139,18 @@ def search_message(refined: Refined, recentred: int) -> str:
 
 
 def assemble_result(
-    unc: Uncertainty, refined: Refined, rigs, options: FitOptions, *, wall: float, platform
+    unc: Uncertainty,
+    refined: Refined,
+    rigs,
+    options: FitOptions,
+    *,
+    wall: float,
+    platform,
+    groups: dict | None = None,
 ) -> FitResult:
-    """The :class:`FitResult` of the stages' outputs."""
+    """The :class:`FitResult` of the stages' outputs; ``groups`` are the squeeze-film groups'
+    estimates (:func:`~rattlefit.inference.group.group_estimates`), listed after the
+    viscosity."""
     lap, z = unc.laplace, unc.z
     problem = lap.problem
     cov = lap.covariance
@@ -148,8 +159,9 @@ def assemble_result(
     z_lo, z_hi = interval_ends(unc, options)
     p = len(problem.specs)
     return FitResult(
-        parameters=estimates_of(
-            problem, z, z_lo, z_hi, [r.recording.operating.lubrication for r in rigs]
+        parameters=with_groups(
+            estimates_of(problem, z, z_lo, z_hi, [r.recording.operating.lubrication for r in rigs]),
+            groups or {},
         ),
         correlation=corr,
         names=[s.name for s in problem.specs],
@@ -225,6 +237,18 @@ def identify(
         refined.problem, refined.optimum, options.ensemble.n_covariance_realisations, rng
     )
     unc = uncertainty(refined, y0, options, rng, say)
+    groups = {}
+    if options.profile.squeeze_film_group:
+        groups = group_estimates(
+            unc.laplace,
+            unc.z,
+            y0,
+            [r.recording.operating.lubrication for r in rigs],
+            options,
+            dof_rec=degrees_of_freedom(unc.laplace.problem) / unc.laplace.problem.n_rec,
+            rng=rng,
+            say=say,
+        )
     wall = time.perf_counter() - t_start
     say(f"done in {wall:.1f} s")
-    return assemble_result(unc, refined, rigs, options, wall=wall, platform=platform)
+    return assemble_result(unc, refined, rigs, options, wall=wall, platform=platform, groups=groups)

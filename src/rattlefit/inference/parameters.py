@@ -84,6 +84,16 @@ def film_names(lubrications: Sequence[str]) -> tuple[str, ...]:
     return tuple(f"a[{lub}]" for lub in lubrications)
 
 
+#: Name of the squeeze-film group's coordinate (:mod:`rattlefit.inference.group`).
+GROUP = "squeeze_film_group"
+
+
+def group_name(film: str) -> str:
+    """The squeeze-film group's name for the film half-length ``film``: ``a`` →
+    ``squeeze_film_group``, ``a[boundary]`` → ``squeeze_film_group[boundary]``."""
+    return GROUP + film[1:]
+
+
 def films_of(rigs: Sequence[RigSetup]) -> tuple[str, ...]:
     """:func:`film_names` of the rigs' recordings."""
     return film_names([rig.recording.operating.lubrication for rig in rigs])

@@ -37,7 +37,7 @@ from ..simulation.solve import (
 )
 from ..util import array_namespace
 from .options import FitOptions
-from .parameters import default_specs, films_of
+from .parameters import GROUP, default_specs, films_of, group_name
 from .rig import RigSetup, setup
 
 
@@ -89,8 +89,14 @@ class Problem(eqx.Module):
         return len(self.bands.centers)
 
     def params_for(self, z, r, dither):
-        """RattleParams of recording r from the unconstrained vector z (log-dithered)."""
+        """RattleParams of recording r from the unconstrained vector z (log-dithered). A film
+        whose coordinate is its squeeze-film group G = μ a³/h_min² (μ at the film's first
+        recording; :mod:`rattlefit.inference.group`) gets ``a = (G h_min²/μ)^(1/3)``."""
         v = {s.name: s.value(z[i]) * jnp.exp(dither[i]) for i, s in enumerate(self.specs)}
+        for film in dict.fromkeys(self.films):
+            if film not in v:  # the film's coordinate is its squeeze-film group
+                mu = v["viscosity_scale"] * self.viscosities[self.films.index(film)]
+                v[film] = (v[group_name(film)] * v["min_film"] ** 2 / mu) ** (1.0 / 3.0)
         return RattleParams(
             jnp.stack([v[name] for name in self.films])[r],
             v["drag_torque"],
@@ -353,11 +359,21 @@ def build_problem(
 
 def dither_draws(specs, films, n: int, dither: float, rng) -> tuple[np.ndarray, np.ndarray]:
     """Each of ``n`` realisations' log-offsets of the parameters, (n, P) — ``dither`` × N(0, 1)
-    for the films and the drag torque, half that for the viscosity, none for the nuisances —
-    and its encoder count phases, (n, 2), uniform in [0, 1)."""
-    weight = {**dict.fromkeys(films, 1.0), "drag_torque": 1.0, "viscosity_scale": 0.5}
+    for the films and the drag torque, half that for the viscosity, none for the nuisances; a
+    squeeze-film group's is 3× its film's draw plus the viscosity's, so that its realisations
+    are the film's — and its encoder count phases, (n, 2), uniform in [0, 1)."""
+    weight = {
+        **dict.fromkeys(films, 1.0),
+        **dict.fromkeys(map(group_name, films), 3.0),
+        "drag_torque": 1.0,
+        "viscosity_scale": 0.5,
+    }
     scale = np.array([weight.get(sp.name, 0.0) for sp in specs])
     offsets = rng.normal(size=(n, len(specs))) * scale * dither
+    names = [sp.name for sp in specs]
+    for j, name in enumerate(names):
+        if name.startswith(GROUP):  # G = μ a³/h²: the film's own draw, ×3, and the viscosity's
+            offsets[:, j] += offsets[:, names.index("viscosity_scale")]
     return offsets, rng.uniform(size=(n, 2))
 
 

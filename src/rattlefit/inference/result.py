@@ -15,7 +15,7 @@ from ..physics.model import RattleParams
 from .advice import what_would_pin
 from .noise import NoiseModel
 from .options import FitOptions
-from .parameters import ParameterSpec
+from .parameters import GROUP, ParameterSpec
 from .problem import Problem, problem_from
 from .profile import Z95
 
@@ -224,10 +224,16 @@ class FitResult:
         }
 
 
+def identified_ratio(name: str) -> float:
+    """The widest interval (upper/lower) that counts as identified: :data:`IDENTIFIED_RATIO`,
+    cubed for a squeeze-film group (G ∝ a³, :mod:`rattlefit.inference.group`)."""
+    return IDENTIFIED_RATIO**3 if name.startswith(GROUP) else IDENTIFIED_RATIO
+
+
 def estimate(spec: ParameterSpec, z: float, lo_z: float, hi_z: float) -> ParameterEstimate:
     """95 % interval through the transform; one-sided when it runs into the range's end.
 
-    ``identified`` needs a two-sided interval no wider than :data:`IDENTIFIED_RATIO` (else
+    ``identified`` needs a two-sided interval no wider than :func:`identified_ratio` (else
     ``bound="interval"``), and for a parameter with a prior at most half the prior's own 95 %
     width, so that the data, not the prior, pin it down (else ``bound="prior"``, and the
     interval spans the prior's central 95 % too). The estimate is the optimum's value in
@@ -261,7 +267,7 @@ def estimate(spec: ParameterSpec, z: float, lo_z: float, hi_z: float) -> Paramet
         lower = max(min(lower, spec.center / reach), spec.lower)
         upper = min(max(upper, spec.center * reach), spec.upper)
         return result(lower, upper, False, "prior")
-    if width <= math.log(IDENTIFIED_RATIO):
+    if width <= math.log(identified_ratio(spec.name)):
         return result(lower, upper, True, None)
     return result(lower, upper, False, "interval")
 
@@ -294,6 +300,19 @@ def estimates_of(
     ordered = {k: found[k] for k in first}
     ordered.update({k: v for k, v in found.items() if k not in ordered})
     return ordered
+
+
+def with_groups(
+    found: dict[str, ParameterEstimate], groups: dict[str, ParameterEstimate]
+) -> dict[str, ParameterEstimate]:
+    """``found`` (:func:`estimates_of`) with the squeeze-film groups after the viscosity."""
+    names = list(found)
+    cut = names.index("viscosity") + 1
+    return {
+        **{k: found[k] for k in names[:cut]},
+        **groups,
+        **{k: found[k] for k in names[cut:]},
+    }
 
 
 def profiles_in_si(problem: Problem, profiles: dict) -> dict[str, list[tuple[float, float]]]:

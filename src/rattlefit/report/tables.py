@@ -8,7 +8,7 @@ import numpy as np
 from ..diagnosis.result import MISSED_Z, Diagnosis
 from ..inference.posterior import Posterior
 from ..inference.profile import CHI2_1_95
-from ..inference.result import IDENTIFIED_RATIO, FitResult
+from ..inference.result import FitResult, identified_ratio
 
 #: Display units of the parameters: (SI multiplier, label).
 DISPLAY = {"m": (1e3, "mm"), "N m": (1.0, "N m"), "Pa s": (1.0, "Pa s"), "1": (1.0, "")}
@@ -29,7 +29,8 @@ def format_table(result: FitResult) -> str:
         elif p.bound == "upper":
             ci, ident = f"≤ {p.upper * mult:.4g}", "no: upper bound only"
         elif p.bound == "interval":
-            ident = f"no: interval too wide (×{p.upper / p.lower:.2f} > ×{IDENTIFIED_RATIO})"
+            ratio = identified_ratio(name)
+            ident = f"no: interval too wide (×{p.upper / p.lower:.2f} > ×{ratio:.3g})"
         elif p.bound == "prior":
             ident = "no: prior-dominated"
         else:

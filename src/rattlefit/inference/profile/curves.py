@@ -96,7 +96,15 @@ def jitter_noise(jitter_costs) -> float:
     return float(np.sqrt(np.mean(np.var(costs, axis=0, ddof=1))))
 
 
-def profile_scan(specs: Sequence, z, cov, profile_costs, *, valley: Valley | None = None) -> dict:
+def profile_scan(
+    specs: Sequence,
+    z,
+    cov,
+    profile_costs,
+    *,
+    valley: Valley | None = None,
+    only: Sequence[int] | None = None,
+) -> dict:
     """Cost profiles of the free parameters over their whole range.
 
     The Laplace interval is local and Gaussian, and rattle's cost is neither: a weak film is
@@ -112,13 +120,14 @@ def profile_scan(specs: Sequence, z, cov, profile_costs, *, valley: Valley | Non
     (:class:`ProfileCosts`, common random numbers with the optimum), so the costs are
     comparable.
 
-    ``profile_costs`` maps points (N, P) to their costs above the optimum's (N,). Returns
+    ``profile_costs`` maps points (N, P) to their costs above the optimum's (N,); ``only``
+    (indices) limits the scan to those free parameters. Returns
     ``{index: {t: (Δcost, z)}}``: for each free parameter and scanned value t (in z), the cost
     above the optimum's and the point that attained it.
     """
     zs, owners = [], []
     for i, spec in enumerate(specs):
-        if spec.log_sd is not None:
+        if spec.log_sd is not None or (only is not None and i not in only):
             continue
         sd = math.sqrt(max(cov[i, i], 0.0))
         ts = {spec.z_of(spec.lower * (spec.upper / spec.lower) ** f) for f in SCAN_FRACTIONS}

@@ -13,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -85,11 +85,14 @@ def monte_carlo_sd(lap: Laplace, n_cov: int, dof_rec: float) -> float:
     return math.sqrt(2.0 * var_cost)
 
 
-def jitter_points(problem: Problem, z) -> np.ndarray:
-    """Points :data:`PROFILE_JITTER` away from ``z`` in each free parameter (1–2 %), where the
-    cost's smooth part is negligible and its spread is the noise of a profile's Δcost."""
+def jitter_points(problem: Problem, z, only: Sequence[int] | None = None) -> np.ndarray:
+    """Points :data:`PROFILE_JITTER` away from ``z`` in each free parameter (1–2 %; of
+    ``only``, when given), where the cost's smooth part is negligible and its spread is the
+    noise of a profile's Δcost."""
     p = len(problem.specs)
-    free = [i for i, s in enumerate(problem.specs) if s.log_sd is None]
+    free = [
+        i for i, s in enumerate(problem.specs) if s.log_sd is None and (only is None or i in only)
+    ]
     jitter = np.stack([z + h * np.eye(p)[i] for i in free for h in PROFILE_JITTER])
     return np.clip(jitter, -Z_END, Z_END)
 
@@ -228,12 +231,14 @@ def profile_stage(
     dof_rec: float,
     rng,
     say,
+    only: Sequence[int] | None = None,
 ) -> ProfileStage:
     """The free parameters' profiles about the optimum ``z`` of the Laplace stage ``lap``,
     their threshold and the rival candidates inside it (see the module docstring).
 
     ``contenders`` are the search's candidates (the optimum first), ``y0`` (R, n, 2) the
-    release states of the covariance realisations, ``rng`` seeds further realisation sets.
+    release states of the covariance realisations, ``rng`` seeds further realisation sets;
+    ``only`` (indices) profiles those free parameters alone.
     """
     problem, specs = lap.problem, lap.problem.specs
     sd = np.sqrt(np.clip(np.diag(lap.covariance), 0, None))
@@ -249,7 +254,7 @@ def profile_stage(
     # the optimum, the other candidates distinct from it, and with the roughness allowance
     # the points 1–2 % away: one batched evaluation
     others = [zr for zr in contenders if np.max(np.abs(zr - z)) > SCAN_SAME]
-    jitter = jitter_points(problem, z) if options.profile.roughness else np.empty((0, len(z)))
+    jitter = jitter_points(problem, z, only) if options.profile.roughness else np.empty((0, len(z)))
     near = np.concatenate([z[None], jitter, *(zr[None] for zr in others)])
     per_near = evaluate(problem, near, y0)
     costs_near = np.array([cost_of(per_near[k], near[k]) for k in range(len(near))])
@@ -275,7 +280,7 @@ def profile_stage(
             f"realisations first; set aside above Δcost {costs.limit:.0f} "
             f"(Δcost rms {costs.noise:.1f} with {options.profile.screen} near the optimum)"
         )
-    profiles = profile_scan(specs, z, lap.covariance, costs, valley=valley)
+    profiles = profile_scan(specs, z, lap.covariance, costs, valley=valley, only=only)
     rivals = admit_rivals(profiles, others, dcost_near[len(jitter) :], threshold)
     costs.complete_ends(profiles, threshold)
     if others:

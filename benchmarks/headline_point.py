@@ -1,0 +1,174 @@
+"""What one 3 s recording of the paper's headline point pins: `identify`'s 95 % intervals per
+feature set, the squeeze-film group among them, and `a` once h_min is known.
+
+The point is pair II at 65.6 mm, boundary, 20 % at 16 Hz, recorded twice: the independent
+simulator's shared file and rattlefit's bundled one (same truth: a 0.085 mm, T_b 0.025 N m,
+μ 0.4942 Pa s). Each is identified with the default options (seed 0) by the band PSDs alone,
+by the bands and the drive-cycle-folded statistics, and by those with h_min known to 10 %
+(``--prior min_film=2e-6:0.1``). The squeeze-film group's truth, G = μ a³/h_min², takes the
+paper's h_min (2 µm), which both simulators use.
+
+Issue 43's checks here: the T_b interval two-sided and at most a factor of 2 wide; the group's
+interval at least 3× narrower, in log, than the band PSDs alone give; with h_min known to 10 %,
+``a`` two-sided and at most a factor of 2 wide.
+
+    python benchmarks/headline_point.py [--from DIR] [--json out.json]
+
+``--from DIR`` (default ``benchmarks/results/raw/headline``) keeps each identify JSON there,
+named ``<file>_<variant>.json``, and reads those present instead of running them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from rattlefit.physics.model import DEFAULT_MIN_FILM
+from rattlefit.reproducibility import platform_info
+from studies import head_commit, identified, write_json
+
+ROOT = Path(__file__).resolve().parents[1]
+FILES = {
+    "shared": ROOT.parent / "shared" / "recordings" / "pairII_boundary_65.6_20pct_16Hz.h5",
+    "rattlefit": ROOT / "data" / "pairII_boundary_65.6_20pct_16Hz.h5",
+}
+#: variant → (features, extra identify arguments)
+VARIANTS = {
+    "bands": ("bands", ()),
+    "bands+folded": ("bands+folded", ()),
+    "bands+folded, h_min 10 %": ("bands+folded", ("--prior", "min_film=2e-6:0.1")),
+}
+A, T_B, MU = 0.085e-3, 0.025, 0.4942
+TRUTH = {
+    "a": A,
+    "drag_torque": T_B,
+    "viscosity": MU,
+    "squeeze_film_group": MU * A**3 / DEFAULT_MIN_FILM**2,
+}
+
+
+def interval_row(p: dict, truth: float) -> dict:
+    """An interval's ends, factor (None when one-sided) and whether it holds ``truth``."""
+    two_sided = p["lower"] > 0 and p["bound"] not in ("lower", "upper")
+    return {
+        "estimate": p["estimate"],
+        "lower": p["lower"],
+        "upper": p["upper"],
+        "bound": p["bound"],
+        "factor": p["upper"] / p["lower"] if two_sided else None,
+        "truth_inside": bool(p["lower"] <= truth <= p["upper"]),
+    }
+
+
+def study(directory: Path, say) -> list[dict]:
+    rows = []
+    for label, path in FILES.items():
+        for variant, (features, extra) in VARIANTS.items():
+            tag = variant.replace("+", "_").replace(", ", "_").replace(" %", "pct").replace(" ", "")
+            doc, wall = identified(path, features, directory / f"{label}_{tag}.json", extra)
+            params = {k: interval_row(doc["parameters"][k], t) for k, t in TRUTH.items()}
+            rows.append(
+                {
+                    "file": label,
+                    "variant": variant,
+                    "identify_s": doc["fit"]["wall_time_s"],
+                    "process_s": wall,
+                    "chi2": doc["fit"]["chi2"],
+                    "dof": doc["fit"]["dof"],
+                    "parameters": params,
+                }
+            )
+            say(f"{label:9s} {variant:25s} " + phrase(params))
+    return rows
+
+
+def phrase(params: dict) -> str:
+    """Each interval in words: ``T_b [0.012, 0.03] (×2.5)``."""
+    out = []
+    for name, short in (("drag_torque", "T_b"), ("a", "a"), ("squeeze_film_group", "G")):
+        p = params[name]
+        scale = 1e3 if name == "a" else 1.0
+        span = f"[{p['lower'] * scale:.3g}, {p['upper'] * scale:.3g}]"
+        out.append(f"{short} {span} (×{p['factor']:.2f})" if p["factor"] else f"{short} {span}")
+    return ", ".join(out)
+
+
+def checks(rows: list[dict]) -> dict:
+    """Issue 43's three checks per file (None where a row is missing)."""
+    by = {(r["file"], r["variant"]): r["parameters"] for r in rows}
+    out = {}
+    for label in FILES:
+        bands, folded = by.get((label, "bands")), by.get((label, "bands+folded"))
+        known = by.get((label, "bands+folded, h_min 10 %"))
+        t_b = folded and folded["drag_torque"]["factor"]
+        g_ratio = None
+        if bands and folded and bands["squeeze_film_group"]["factor"]:
+            wide = math.log(bands["squeeze_film_group"]["factor"])
+            narrow = folded["squeeze_film_group"]["factor"]
+            g_ratio = wide / math.log(narrow) if narrow else None
+        a_known = known and known["a"]["factor"]
+        out[label] = {
+            "drag_torque_factor": t_b,
+            "drag_torque_met": bool(t_b and t_b <= 2.0),
+            "group_log_width_ratio": g_ratio,
+            "group_met": bool(g_ratio and g_ratio >= 3.0),
+            "a_factor_h_min_known": a_known,
+            "a_met": bool(a_known and a_known <= 2.0),
+        }
+    return out
+
+
+def result_document(rows: list[dict]) -> dict:
+    """The benchmark result file (``benchmarks/results/``) of ``rows``."""
+    c = checks(rows)
+    held = all(p["truth_inside"] for r in rows for p in r["parameters"].values())
+    met = [
+        f"{k} {label}"
+        for label, v in c.items()
+        for k in ("T_b", "G", "a")
+        if v[{"T_b": "drag_torque_met", "G": "group_met", "a": "a_met"}[k]]
+    ]
+    words = {
+        label: f"{label}: T_b ×{v['drag_torque_factor'] or float('inf'):.2f}, group "
+        f"{v['group_log_width_ratio'] or 0:.1f}× narrower in log, a with h_min known "
+        f"×{v['a_factor_h_min_known'] or float('inf'):.2f}"
+        for label, v in c.items()
+    }
+    return {
+        "order": 12.5,
+        "what": "what one 3 s recording of the headline point pins (pair II, 65.6 mm, boundary, "
+        "20 % at 16 Hz; the shared file and the bundled one): identify's 95 % intervals per "
+        "feature set, the squeeze-film group G = μa³/h_min², and a with h_min known to 10 %",
+        "summary": "; ".join(words.values())
+        + ("; every truth inside" if held else "; a truth outside")
+        + " (bands+folded; the group against the bands alone)",
+        "aim": "T_b two-sided and ≤ ×2; G ≥ 3× narrower in log than the bands alone give; "
+        "a ≤ ×2 with h_min known to 10 %",
+        "verdict": "met"
+        if len(met) == 3 * len(FILES)
+        else ("met: " + ", ".join(met) if met else "missed"),
+        "measured": "rattlefit identify FILE --features F [--prior min_film=2e-6:0.1] with the "
+        "default options, seed 0; G's truth takes the paper's h_min, 2 µm",
+        "command": "python benchmarks/headline_point.py --json OUT",
+        "checks": c,
+        "results": rows,
+        "platform": platform_info(),
+        "commit": head_commit(),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--from", dest="directory", default="benchmarks/results/raw/headline")
+    ap.add_argument("--json")
+    args = ap.parse_args()
+    directory = Path(args.directory).resolve()
+    directory.mkdir(parents=True, exist_ok=True)
+    rows = study(directory, print)
+    if args.json:
+        write_json(args.json, result_document(rows))
+
+
+if __name__ == "__main__":
+    main()
