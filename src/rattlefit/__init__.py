@@ -36,7 +36,14 @@ from .inference import (  # noqa: E402
 from .io.recording import Recording, read_recording, write_recording  # noqa: E402
 from .physics.drive import Drive  # noqa: E402
 from .physics.geometry import GearGeometry, table2_pair  # noqa: E402
-from .physics.model import Effect, RattleModel, RattleParams, Smoothing  # noqa: E402
+from .physics.model import (  # noqa: E402
+    Effect,
+    RattleModel,
+    RattleParams,
+    Smoothing,
+    film_for_squeeze_momentum,
+    squeeze_momentum,
+)
 from .physics.oil import dynamic_viscosity  # noqa: E402
 from .reproducibility import platform_info  # noqa: E402
 from .simulation.parallel import use_cpu_cores  # noqa: E402
@@ -66,12 +73,14 @@ __all__ = [
     "SolverError",
     "diagnose",
     "dynamic_viscosity",
+    "film_for_squeeze_momentum",
     "identify",
     "platform_info",
     "read_recording",
     "sample",
     "simulate",
     "simulate_batch",
+    "squeeze_momentum",
     "synthesize",
     "table2_pair",
     "use_compilation_cache",

@@ -7,8 +7,8 @@ import re
 #: Advice per parameter (base name, lubrication of its film or None): what would pin it.
 ADVICE = {
     ("a", "boundary"): (
-        "a boundary recording pins the squeeze-film group G = μ·a³/h_min² "
-        "(squeeze_film_group; a = (G·h_min²/μ)^(1/3) for a known h_min), not a alone: fit it "
+        "a boundary recording pins the squeeze film's momentum per approach "
+        "(squeeze_momentum, ∝ μ·a³/h_min² for a short film), not a alone: fit it "
         "jointly with an oil-jet recording of the same pair (rattlefit identify FILE "
         "OILJET_FILE), or give h_min as known (--prior min_film=2e-6:0.1 for 10 %)"
     ),

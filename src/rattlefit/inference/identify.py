@@ -238,7 +238,7 @@ def identify(
     )
     unc = uncertainty(refined, y0, options, rng, say)
     groups = {}
-    if options.profile.squeeze_film_group:
+    if options.profile.group:
         groups = group_estimates(
             unc.laplace,
             unc.z,

@@ -169,8 +169,9 @@ class ProfileOptions:
         from the optimum, where it exceeds the analytic Monte Carlo allowance. Default True.
     screen : realisations that cost a profile value first; the rest only where it is not
         already far above the threshold. 0 simulates all of them. Default 6.
-    squeeze_film_group : also profile each boundary film's squeeze-film group μ a³/h_min²
-        (:mod:`rattlefit.inference.group`), what a boundary recording pins. Default True.
+    group : also profile each boundary film's squeeze-film group, the squeeze film's momentum
+        per approach (:mod:`rattlefit.inference.group`), what a boundary recording pins.
+        Default True.
     """
 
     rounds: int = 1
@@ -180,7 +181,7 @@ class ProfileOptions:
     valley: bool = True
     roughness: bool = True
     screen: int = 6
-    squeeze_film_group: bool = True
+    group: bool = True
 
     def __post_init__(self):
         for name in ("rounds", "bisections", "continuation", "screen"):
@@ -251,7 +252,7 @@ FLAT_FIELDS: dict[str, tuple[str, str]] = {
     "profile_roughness": ("profile", "roughness"),
     "roughness_sets": ("experimental", "roughness_sets"),
     "profile_screen": ("profile", "screen"),
-    "profile_group": ("profile", "squeeze_film_group"),
+    "profile_group": ("profile", "group"),
     "recentre_rounds": ("experimental", "recentre_rounds"),
     "seed": ("", "seed"),
     "rtol": ("ensemble", "rtol"),

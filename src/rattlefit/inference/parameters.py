@@ -84,13 +84,14 @@ def film_names(lubrications: Sequence[str]) -> tuple[str, ...]:
     return tuple(f"a[{lub}]" for lub in lubrications)
 
 
-#: Name of the squeeze-film group's coordinate (:mod:`rattlefit.inference.group`).
-GROUP = "squeeze_film_group"
+#: Name of the squeeze-film group's coordinate, the squeeze film's momentum per approach
+#: (:mod:`rattlefit.inference.group`).
+GROUP = "squeeze_momentum"
 
 
 def group_name(film: str) -> str:
     """The squeeze-film group's name for the film half-length ``film``: ``a`` →
-    ``squeeze_film_group``, ``a[boundary]`` → ``squeeze_film_group[boundary]``."""
+    ``squeeze_momentum``, ``a[boundary]`` → ``squeeze_momentum[boundary]``."""
     return GROUP + film[1:]
 
 

@@ -27,7 +27,13 @@ from ..features.ensemble import regime_weights, weighted_mean
 from ..features.folded import cycle_phase, folded_statistics
 from ..features.spectra import spectral_features
 from ..io.recording import Recording
-from ..physics.model import Effect, RattleModel, RattleParams, share_stiffness_tables
+from ..physics.model import (
+    Effect,
+    RattleModel,
+    RattleParams,
+    film_for_squeeze_momentum,
+    share_stiffness_tables,
+)
 from ..simulation.parallel import map_blocks
 from ..simulation.solve import (
     absolute_tolerances,
@@ -37,7 +43,7 @@ from ..simulation.solve import (
 )
 from ..util import array_namespace
 from .options import FitOptions
-from .parameters import GROUP, default_specs, films_of, group_name
+from .parameters import default_specs, films_of, group_name
 from .rig import RigSetup, setup
 
 
@@ -88,15 +94,37 @@ class Problem(eqx.Module):
         """B, the number of band features: the first B of every feature vector."""
         return len(self.bands.centers)
 
+    def index(self, name: str) -> int:
+        """The index of parameter ``name`` in :attr:`specs`."""
+        return [s.name for s in self.specs].index(name)
+
+    def film_of_group(self, values: dict, film: str):
+        """The half-length of ``film`` (m) whose squeeze momentum
+        (:func:`~rattlefit.physics.model.squeeze_momentum`, on the film's first recording's
+        flanks and viscosity) is ``values``' group of it, at ``values``' viscosity factor and
+        ``h_min`` (parameter name → value)."""
+        r = self.films.index(film)
+        return film_for_squeeze_momentum(
+            values[group_name(film)],
+            values["viscosity_scale"] * self.viscosities[r],
+            values["min_film"],
+            self.models.curvature_radius[r],
+            self.models.axial_width[r],
+        )
+
     def params_for(self, z, r, dither):
         """RattleParams of recording r from the unconstrained vector z (log-dithered). A film
-        whose coordinate is its squeeze-film group G = μ a³/h_min² (μ at the film's first
-        recording; :mod:`rattlefit.inference.group`) gets ``a = (G h_min²/μ)^(1/3)``."""
-        v = {s.name: s.value(z[i]) * jnp.exp(dither[i]) for i, s in enumerate(self.specs)}
+        whose coordinate is its squeeze-film group (:mod:`rattlefit.inference.group`) gets
+        the ``a`` of that group at the undithered viscosity and ``h_min``
+        (:meth:`film_of_group`), dithered by the group's column: each realisation is the
+        same as with the film's own coordinate."""
+        raw = {s.name: s.value(z[i]) for i, s in enumerate(self.specs)}
+        v = {s.name: raw[s.name] * jnp.exp(dither[i]) for i, s in enumerate(self.specs)}
         for film in dict.fromkeys(self.films):
             if film not in v:  # the film's coordinate is its squeeze-film group
-                mu = v["viscosity_scale"] * self.viscosities[self.films.index(film)]
-                v[film] = (v[group_name(film)] * v["min_film"] ** 2 / mu) ** (1.0 / 3.0)
+                v[film] = self.film_of_group(raw, film) * jnp.exp(
+                    dither[self.index(group_name(film))]
+                )
         return RattleParams(
             jnp.stack([v[name] for name in self.films])[r],
             v["drag_torque"],
@@ -359,21 +387,16 @@ def build_problem(
 
 def dither_draws(specs, films, n: int, dither: float, rng) -> tuple[np.ndarray, np.ndarray]:
     """Each of ``n`` realisations' log-offsets of the parameters, (n, P) — ``dither`` × N(0, 1)
-    for the films and the drag torque, half that for the viscosity, none for the nuisances; a
-    squeeze-film group's is 3× its film's draw plus the viscosity's, so that its realisations
-    are the film's — and its encoder count phases, (n, 2), uniform in [0, 1)."""
+    for the films (or their squeeze-film groups, whose column dithers the film) and the drag
+    torque, half that for the viscosity, none for the nuisances — and its encoder count phases,
+    (n, 2), uniform in [0, 1)."""
     weight = {
-        **dict.fromkeys(films, 1.0),
-        **dict.fromkeys(map(group_name, films), 3.0),
+        **dict.fromkeys([*films, *map(group_name, films)], 1.0),
         "drag_torque": 1.0,
         "viscosity_scale": 0.5,
     }
     scale = np.array([weight.get(sp.name, 0.0) for sp in specs])
     offsets = rng.normal(size=(n, len(specs))) * scale * dither
-    names = [sp.name for sp in specs]
-    for j, name in enumerate(names):
-        if name.startswith(GROUP):  # G = μ a³/h²: the film's own draw, ×3, and the viscosity's
-            offsets[:, j] += offsets[:, names.index("viscosity_scale")]
     return offsets, rng.uniform(size=(n, 2))
 
 

@@ -226,7 +226,7 @@ class FitResult:
 
 def identified_ratio(name: str) -> float:
     """The widest interval (upper/lower) that counts as identified: :data:`IDENTIFIED_RATIO`,
-    cubed for a squeeze-film group (G ∝ a³, :mod:`rattlefit.inference.group`)."""
+    cubed for a squeeze-film group (∝ a³ for a short film, :mod:`rattlefit.inference.group`)."""
     return IDENTIFIED_RATIO**3 if name.startswith(GROUP) else IDENTIFIED_RATIO
 
 

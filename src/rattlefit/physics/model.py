@@ -240,6 +240,54 @@ def equivalent_viscosity(h, a, viscosity, a_new, radius):
     )
 
 
+def film_saturation(y):
+    """ψ(y) = arctan y − y/(1 + y²) of :func:`squeeze_momentum`, y = a/√(R h_min): (2/3) y³
+    for a short film (the series below y = 10⁻², where the closed form cancels), π/2 for a
+    saturated one; increasing."""
+    xp = array_namespace(y)
+    atan = arctan if xp is jnp else np.arctan
+    ys = xp.where(y < 1e-2, 0.5, y)  # keep the unused branch finite
+    return xp.where(
+        y < 1e-2, (2.0 / 3.0) * y**3 * (1.0 - 1.8 * y**2), atan(ys) - ys / (1.0 + ys**2)
+    )
+
+
+def squeeze_momentum(a, viscosity, min_film, radius, width):
+    """The momentum the squeeze film takes from one approach of the flanks, per unit of
+    approach speed: ``M = ∫_{h_min}^∞ S(h) dh`` (N s) of eq. (5)'s coefficient S.
+
+    In closed form ``M = 6 μ Z R^{3/2} h_min^{-1/2} ψ(a/√(R h_min))``
+    (:func:`film_saturation`): ``M → 4 μ Z a³/h_min²`` for a short film and
+    ``3π μ Z R^{3/2} h_min^{-1/2}`` for a long one, saturated in ``a``.
+    """
+    xp = array_namespace(a, viscosity, min_film, radius, width)
+    root = xp.sqrt(radius * min_film)
+    return 6.0 * viscosity * width * radius * root / min_film * film_saturation(a / root)
+
+
+#: Bisection steps of :func:`film_for_squeeze_momentum` on ln y over ±ln 10⁶: 2⁻⁶⁴ of that
+#: span, below a float's resolution.
+MOMENTUM_BISECTIONS = 64
+#: ln of the largest y = a/√(R h_min) :func:`film_for_squeeze_momentum` returns.
+LN_Y_END = 6.0 * math.log(10.0)
+
+
+def film_for_squeeze_momentum(momentum, viscosity, min_film, radius, width):
+    """The film half-length ``a`` (m) whose :func:`squeeze_momentum` is ``momentum`` (N s),
+    by bisection on ln y (ψ is increasing). Beyond the saturated film's momentum no ``a``
+    reaches it, and ``a`` is that of y = 10⁶, a film far longer than any flank."""
+    xp = array_namespace(momentum, viscosity, min_film, radius, width)
+    root = xp.sqrt(radius * min_film)
+    target = momentum * min_film / (6.0 * viscosity * width * radius * root)  # ψ(y)
+    lo = xp.full_like(target, -LN_Y_END)
+    hi = xp.full_like(target, LN_Y_END)
+    for _ in range(MOMENTUM_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        above = film_saturation(xp.exp(mid)) > target
+        lo, hi = xp.where(above, lo, mid), xp.where(above, mid, hi)
+    return root * xp.exp(0.5 * (lo + hi))
+
+
 class Effect(eqx.Module):
     """An extra physical effect outside the seed paper's model (the plug-in contract).
 

@@ -4,7 +4,7 @@ HTML report's parameter table; and the numbers as the table shows them."""
 from __future__ import annotations
 
 from ..inference.advice import base_name, film_lubrication
-from ..inference.result import IDENTIFIED_RATIO
+from ..inference.result import identified_ratio
 from .tables import DISPLAY
 
 #: What each fitted parameter is, in words.
@@ -15,6 +15,8 @@ MEANING = {
     "stiffness_scale": "factor on the mesh stiffness",
     "min_film": "adsorbed film thickness h_min below which the squeeze force saturates",
     "backlash": "backlash on the pitch circle",
+    "squeeze_momentum": "momentum the squeeze film takes per approach of the flanks, per unit "
+    "of approach speed (∝ μ·a³/h_min² for a short film)",
 }
 
 
@@ -89,7 +91,7 @@ def explain(name: str, p: dict, lubrications: list[str]) -> str:
         half = 50.0 * (hi - lo) / (hi + lo)
         text = (
             f"Identified: the data pin it to about ±{half:.0f} % (95 % interval a factor "
-            f"{hi / lo:.2f} wide, below ×{IDENTIFIED_RATIO})."
+            f"{hi / lo:.2f} wide, below ×{identified_ratio(name):.3g})."
         )
     elif bound in ("lower", "upper"):
         word = "A lower" if bound == "lower" else "An upper"
@@ -102,15 +104,16 @@ def explain(name: str, p: dict, lubrications: list[str]) -> str:
     elif bound == "interval":
         text = (
             f"Too wide to count as identified: the interval spans a factor {hi / lo:.2f}, "
-            f"more than ×{IDENTIFIED_RATIO}."
+            f"more than ×{identified_ratio(name):.3g}."
         )
     else:
         text = "Not pinned down: the interval runs into both ends of the fitted range."
     if lub == "boundary":
         text += (
             " In boundary lubrication the film trades against h_min and the viscosity: the "
-            "spectrum pins the squeeze-film group μ·a³/h_min², so a is known only as well as "
-            "h_min and μ are (a prior on h_min, --prior min_film=…, sharpens it)."
+            "spectrum pins the squeeze film's momentum per approach (squeeze_momentum, "
+            "∝ μ·a³/h_min² for a short film), so a is known only as well as h_min and μ are "
+            "(a prior on h_min, --prior min_film=…, sharpens it)."
         )
     elif base == "viscosity" and "boundary" in lubrications:
         text += (
