@@ -75,10 +75,11 @@ def test_the_group_coordinate_gives_every_realisation_the_films_parameters(bound
     assert float(grouped.specs[i].value(z_g[i])) == pytest.approx(
         group_value(problem, z, "a"), rel=1e-9
     )
-    m = problem.dither.shape[0]
-    for k in range(m):
-        want = problem.params_for(jnp.asarray(z), 0, jnp.asarray(problem._dither(m)[k]))
-        got = grouped.params_for(jnp.asarray(z_g), 0, jnp.asarray(grouped._dither(m)[k]))
+    dither = problem.rows(z[None])[3]  # each realisation's dither, as a simulation gets it
+    dither_g = grouped.rows(z_g[None])[3]
+    for d, d_g in zip(dither, dither_g, strict=True):
+        want = problem.params_for(jnp.asarray(z), 0, jnp.asarray(d))
+        got = grouped.params_for(jnp.asarray(z_g), 0, jnp.asarray(d_g))
         for name, value in want.as_dict().items():
             assert float(got.as_dict()[name]) == pytest.approx(float(value), rel=1e-9), name
 
