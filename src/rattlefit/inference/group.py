@@ -28,7 +28,7 @@ import numpy as np
 from ..physics.model import DEFAULT_MIN_FILM, film_saturation, squeeze_momentum
 from .laplace import Laplace
 from .options import FitOptions
-from .parameters import ParameterSpec, group_name
+from .parameters import ParameterSpec, momentum_name
 from .problem import Problem
 from .profile import profile_interval, profile_stage
 from .result import ParameterEstimate, estimate
@@ -58,7 +58,7 @@ def group_spec(problem: Problem, film: str) -> ParameterSpec:
     mu *= specs["viscosity_scale"].center or 1.0
     h_c = h.center or DEFAULT_MIN_FILM
     return ParameterSpec(
-        group_name(film),
+        momentum_name(film),
         "N s",
         float(squeeze_momentum(a.lower, mu, h_c, radius, width)),
         float(squeeze_momentum(a.upper, mu, h_c, radius, width)),

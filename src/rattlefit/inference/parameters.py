@@ -86,13 +86,13 @@ def film_names(lubrications: Sequence[str]) -> tuple[str, ...]:
 
 #: Name of the squeeze-film group's coordinate, the squeeze film's momentum per approach
 #: (:mod:`rattlefit.inference.group`).
-GROUP = "squeeze_momentum"
+MOMENTUM = "squeeze_momentum"
 
 
-def group_name(film: str) -> str:
+def momentum_name(film: str) -> str:
     """The squeeze-film group's name for the film half-length ``film``: ``a`` →
     ``squeeze_momentum``, ``a[boundary]`` → ``squeeze_momentum[boundary]``."""
-    return GROUP + film[1:]
+    return MOMENTUM + film[1:]
 
 
 def films_of(rigs: Sequence[RigSetup]) -> tuple[str, ...]:

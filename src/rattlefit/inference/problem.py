@@ -43,7 +43,7 @@ from ..simulation.solve import (
 )
 from ..util import array_namespace
 from .options import FitOptions
-from .parameters import default_specs, films_of, group_name
+from .parameters import default_specs, films_of, momentum_name
 from .rig import RigSetup, setup
 
 
@@ -105,7 +105,7 @@ class Problem(eqx.Module):
         ``h_min`` (parameter name → value)."""
         r = self.films.index(film)
         return film_for_squeeze_momentum(
-            values[group_name(film)],
+            values[momentum_name(film)],
             values["viscosity_scale"] * self.viscosities[r],
             values["min_film"],
             self.models.curvature_radius[r],
@@ -123,7 +123,7 @@ class Problem(eqx.Module):
         for film in dict.fromkeys(self.films):
             if film not in v:  # the film's coordinate is its squeeze-film group
                 v[film] = self.film_of_group(raw, film) * jnp.exp(
-                    dither[self.index(group_name(film))]
+                    dither[self.index(momentum_name(film))]
                 )
         return RattleParams(
             jnp.stack([v[name] for name in self.films])[r],
@@ -391,7 +391,7 @@ def dither_draws(specs, films, n: int, dither: float, rng) -> tuple[np.ndarray, 
     torque, half that for the viscosity, none for the nuisances — and its encoder count phases,
     (n, 2), uniform in [0, 1)."""
     weight = {
-        **dict.fromkeys([*films, *map(group_name, films)], 1.0),
+        **dict.fromkeys([*films, *map(momentum_name, films)], 1.0),
         "drag_torque": 1.0,
         "viscosity_scale": 0.5,
     }

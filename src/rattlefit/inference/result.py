@@ -15,7 +15,7 @@ from ..physics.model import RattleParams
 from .advice import what_would_pin
 from .noise import NoiseModel
 from .options import FitOptions
-from .parameters import GROUP, ParameterSpec
+from .parameters import MOMENTUM, ParameterSpec
 from .problem import Problem, problem_from
 from .profile import Z95
 
@@ -227,7 +227,7 @@ class FitResult:
 def identified_ratio(name: str) -> float:
     """The widest interval (upper/lower) that counts as identified: :data:`IDENTIFIED_RATIO`,
     cubed for a squeeze-film group (∝ a³ for a short film, :mod:`rattlefit.inference.group`)."""
-    return IDENTIFIED_RATIO**3 if name.startswith(GROUP) else IDENTIFIED_RATIO
+    return IDENTIFIED_RATIO**3 if name.startswith(MOMENTUM) else IDENTIFIED_RATIO
 
 
 def estimate(spec: ParameterSpec, z: float, lo_z: float, hi_z: float) -> ParameterEstimate:
