@@ -35,6 +35,8 @@ import time
 from collections import Counter
 from pathlib import Path
 
+from scipy import stats
+
 import rattlefit as rf
 from diagnose_sets import DISSIPATION, clean_set, injected_set
 from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
@@ -172,19 +174,34 @@ def is_clean(case: dict) -> bool:
     return set(case["expected"]) <= set(CLEAN)
 
 
+def rate_interval(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
+    """Clopper–Pearson interval of a rate from ``k`` of ``n`` cases: what the study's size
+    allows one to say of the rate on more recordings like these."""
+    if n == 0:
+        return 0.0, 1.0
+    tail = (1.0 - level) / 2.0
+    lower = stats.beta.ppf(tail, k, n - k + 1) if k > 0 else 0.0
+    upper = stats.beta.ppf(1.0 - tail, k + 1, n - k) if k < n else 1.0
+    return round(float(lower), 4), round(float(upper), 4)
+
+
 def summary(rows: list[dict]) -> dict:
-    """False-positive rate on the clean cases, right rate on the effect cases, right verdicts
-    per set, confusion."""
+    """False-positive rate on the clean cases, right rate on the effect cases (each with its
+    95 % Clopper–Pearson interval), right verdicts per set, confusion."""
     clean = [r for r in rows if is_clean(r)]
     effect = [r for r in rows if not is_clean(r)]
     confusion = Counter((("clean" if r in clean else r["expected"][0]), r["verdict"]) for r in rows)
+    false_positives = sum(not r["right"] for r in clean)
+    effect_right = sum(r["right"] for r in effect)
     return {
         "clean_cases": len(clean),
-        "false_positives": sum(not r["right"] for r in clean),
-        "false_positive_rate": sum(not r["right"] for r in clean) / max(len(clean), 1),
+        "false_positives": false_positives,
+        "false_positive_rate": false_positives / max(len(clean), 1),
+        "false_positive_rate_95": rate_interval(false_positives, len(clean)),
         "effect_cases": len(effect),
-        "effect_right": sum(r["right"] for r in effect),
-        "effect_right_rate": sum(r["right"] for r in effect) / max(len(effect), 1),
+        "effect_right": effect_right,
+        "effect_right_rate": effect_right / max(len(effect), 1),
+        "effect_right_rate_95": rate_interval(effect_right, len(effect)),
         "per_set": {
             name: {"cases": len(rs), "right": sum(r["right"] for r in rs)}
             for name in dict.fromkeys(r["set"] for r in rows)
@@ -204,9 +221,11 @@ def study_verdict(result: dict, n_clean: int, n_effect: int) -> str:
     right_ok = result["effect_right_rate"] >= 0.8
     if clean == n_clean and effect == n_effect and fp_ok and right_ok:
         return "met"
+    lo, hi = result["false_positive_rate_95"]
     fp = (
         f"false positives {'met' if fp_ok else 'missed'} ({result['false_positives']} of "
-        f"{clean} clean, {100 * result['false_positive_rate']:.1f} %)"
+        f"{clean} clean, {100 * result['false_positive_rate']:.1f} %; 95 % interval "
+        f"{100 * lo:.1f}–{100 * hi:.1f} %)"
         if clean == n_clean
         else f"false positives not yet measured ({clean} of {n_clean} clean cases run)"
     )
