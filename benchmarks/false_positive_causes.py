@@ -13,7 +13,9 @@ program):
   the re-fit did not reach?);
 * the noise model: the recording's band features against an ensemble of recordings made as
   it was at other seeds (is it a typical draw of its truth?), and that ensemble's spread per
-  band against the fit's σ, which is estimated once, at the optimum.
+  band against the fit's σ, which is estimated once, at the optimum;
+* the identification the diagnosis starts from, again with starts that spread the nuisances
+  too (``FitOptions(nuisance_starts=None)``): does a wider search reach a better optimum?
 
     python benchmarks/false_positive_causes.py [--cases NAME:EFFECT ...] [--json OUT]
 
@@ -41,6 +43,8 @@ from rattlefit.diagnosis.diagnose import (
 )
 from rattlefit.diagnosis.trial import chi2s, final_chi2
 from rattlefit.features.spectra import BandSpec, spectral_features
+from rattlefit.inference.identify import identify
+from rattlefit.inference.options import FitOptions
 from rattlefit.inference.parameters import Z_END
 from rattlefit.inference.problem import release_states
 from rattlefit.inference.rig import setup
@@ -154,6 +158,7 @@ def study_case(name: str, effect: str, truth: dict, say) -> dict:
     z_true = truth_point(trial, z_base, truth, setup(recording).viscosity)
     chi2_truth, mean_truth = final_chi2(trial, z_true)
     z_refit, _, _ = refit_without_effects(trial, z_true, quiet)
+    wider = identify([recording], FitOptions.optimum_only(nuisance_starts=None))
     row = {
         "name": name,
         "effect": effect,
@@ -165,6 +170,13 @@ def study_case(name: str, effect: str, truth: dict, say) -> dict:
         "refit_from_truth": {
             "point": point(trial, z_refit),
             "chi2": round(final_chi2(trial, z_refit)[0], 1),
+        },
+        "identification": {
+            "chi2": round(baseline.chi2, 1),
+            "with_nuisance_starts": {
+                "point": {k: float(f"{p.estimate:.4g}") for k, p in wider.parameters.items()},
+                "chi2": round(wider.chi2, 1),
+            },
         },
         "ensemble": ensemble_check(name, trial, np.asarray(mean_truth).reshape(-1), recording),
         "wall_s": round(time.perf_counter() - t0, 1),
@@ -183,16 +195,21 @@ def phrase(row: dict) -> str:
         f"{row['name']} ({row['effect']}): χ² {row['base']['chi2']:.1f} → "
         f"{row['with_effect']['chi2']:.1f} on {row['dof']} (other fresh sets {reps}); "
     )
+    ident = row["identification"]
+    wider = (
+        f"; the identification's χ² {ident['chi2']:.1f}, "
+        f"{ident['with_nuisance_starts']['chi2']:.1f} with nuisance starts"
+    )
     if refit < row["base"]["chi2"]:
         return head + (
             f"the truth fits within its noise ({truth:.1f}; {refit:.1f} re-fitted from it), an "
-            "optimum the re-fit without effects did not reach"
+            "optimum the re-fit without effects did not reach" + wider
         )
     return head + (
         f"the truth fits worse ({truth:.0f}; {refit:.0f} re-fitted from it), though the recording "
         f"is a typical draw of it (largest |z| {e['data_max_abs_z']:.1f} against "
         f"{ENSEMBLE} recordings of it), whose spread reaches {e['spread_over_sigma_max']:.0f}× "
-        "the fit's σ in some bands"
+        "the fit's σ in some bands" + wider
     )
 
 
