@@ -143,15 +143,18 @@ def ensemble_check(name: str, trial, mean_at_truth: np.ndarray, recording) -> di
     }
 
 
+def quiet(message: str) -> None:
+    """A progress callback that drops every message."""
+
+
 def study_case(name: str, effect: str, truth: dict, say) -> dict:
     """Every measurement of the module notes for one clean recording blamed on ``effect``."""
     t0 = time.perf_counter()
     recording = read_recording(CACHE / "clean" / f"{name}.h5")
     options = DiagnoseOptions()
-    _, seen = model_free([recording], options, lambda s: None)
-    baseline = identified([recording], options, None, None, lambda s: None)
+    _, seen = model_free([recording], options, quiet)
+    baseline = identified([recording], options, None, None, quiet)
     trial = trial_of([recording], baseline, options, in_program(options, seen))
-    quiet = lambda s: None  # noqa: E731
     z_base, chi2_without, _, _ = base_model(trial, baseline, quiet)
     z_fit = fit_effect(trial, effect, z_base, quiet)
     chi2_with = final_chi2(trial, z_fit)[0]
