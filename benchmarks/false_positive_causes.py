@@ -30,7 +30,7 @@ import time
 
 import numpy as np
 
-from diagnose_sets import CACHE, clean_cases, truth_entries
+from diagnose_sets import CACHE, Case, clean_cases
 from rattlefit.diagnosis.diagnose import (
     DiagnoseOptions,
     base_model,
@@ -106,10 +106,9 @@ def gap_and_drop(trial, z_base, z_fit) -> list[dict]:
     return rows
 
 
-def ensemble_check(name: str, trial, mean_at_truth: np.ndarray, recording) -> dict:
-    """The recording's band features against :data:`ENSEMBLE` recordings of its case at
+def ensemble_check(case: Case, trial, mean_at_truth: np.ndarray, recording) -> dict:
+    """The recording's band features against :data:`ENSEMBLE` recordings of ``case`` at
     other seeds, and that ensemble's spread against the fit's σ."""
-    case = next(c for c in clean_cases() if c.name == name)
     bands = BandSpec.for_recording(recording.sample_rate_hz)
     feats = []
     for k in range(ENSEMBLE):
@@ -147,9 +146,11 @@ def quiet(message: str) -> None:
     """A progress callback that drops every message."""
 
 
-def study_case(name: str, effect: str, truth: dict, say) -> dict:
-    """Every measurement of the module notes for one clean recording blamed on ``effect``."""
+def study_case(case: Case, effect: str, say) -> dict:
+    """Every measurement of the module notes for the clean recording of ``case`` blamed on
+    ``effect``."""
     t0 = time.perf_counter()
+    name, truth = case.name, case.truth()
     recording = read_recording(CACHE / "clean" / f"{name}.h5")
     options = DiagnoseOptions()
     _, seen = model_free([recording], options, quiet)
@@ -181,7 +182,7 @@ def study_case(name: str, effect: str, truth: dict, say) -> dict:
                 "chi2": round(wider.chi2, 1),
             },
         },
-        "ensemble": ensemble_check(name, trial, np.asarray(mean_truth).reshape(-1), recording),
+        "ensemble": ensemble_check(case, trial, np.asarray(mean_truth).reshape(-1), recording),
         "wall_s": round(time.perf_counter() - t0, 1),
     }
     say(phrase(row))
@@ -252,8 +253,8 @@ def main() -> None:
     ap.add_argument("--json")
     args = ap.parse_args()
     cases = [tuple(c.split(":", 1)) for c in args.cases] if args.cases else CASES
-    truths = truth_entries("clean")
-    rows = [study_case(name, effect, truths[name], print) for name, effect in cases]
+    by_name = {c.name: c for c in clean_cases()}
+    rows = [study_case(by_name[name], effect, print) for name, effect in cases]
     if args.json:
         write_json(args.json, result_document(rows), ensure_ascii=False)
 
