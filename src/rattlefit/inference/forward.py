@@ -78,18 +78,26 @@ def evaluate(problem: Problem, zs, y0=None, realisations=None) -> np.ndarray:
     m = problem.y0.shape[1] if y0 is None else y0.shape[1]
     if realisations is not None:
         m = len(realisations)
-    drag = [s.name for s in problem.specs].index("drag_torque")
-    order = np.argsort(zs[:, drag], kind="stable")
+    order = np.argsort(zs[:, problem.index("drag_torque")], kind="stable")
     rows = problem.rows(zs[order], None if y0 is None else np.asarray(y0), realisations)
+    out = evaluate_rows(problem, rows).reshape(zs.shape[0], problem.n_rec, m, -1)
+    return out[np.argsort(order)]
+
+
+def evaluate_rows(problem: Problem, rows) -> np.ndarray:
+    """Features (N, F), numpy, of ``rows`` in the layout of :meth:`Problem.rows` (point,
+    recording, release state, dither, encoder phase; N rows), each simulated once, through
+    the one compiled program of :func:`chunk_size` rows (the last chunk padded with repeats
+    of the last row). A row's features do not depend on the rows it shares a chunk with.
+    """
+    rows = [np.asarray(x) for x in rows]
     n, c = rows[0].shape[0], chunk_size()
     pad = -n % c
     rows = [np.concatenate([x, np.repeat(x[-1:], pad, axis=0)]) for x in rows]
     chunks = [
         features_chunk(problem, tuple(x[i : i + c] for x in rows)) for i in range(0, n + pad, c)
     ]
-    out = np.concatenate([np.asarray(x) for x in chunks])[:n]
-    out = out.reshape(zs.shape[0], problem.n_rec, m, -1)
-    return out[np.argsort(order)]
+    return np.concatenate([np.asarray(x) for x in chunks])[:n]
 
 
 def jacobian_at(problem: Problem, z) -> tuple[np.ndarray, np.ndarray]:
