@@ -112,6 +112,54 @@ def _prior_option(func):
     )(func)
 
 
+def _likelihood_options(func):
+    """``--likelihood`` and ``--reuse-likelihood`` (FitOptions.likelihood)."""
+    func = click.option(
+        "--reuse-likelihood",
+        "reuse",
+        type=click.Path(exists=True, dir_okay=False, path_type=Path),
+        default=None,
+        help="A learned likelihood of this test point (identify -o X.json writes "
+        "X.likelihood.h5) to start from instead of learning; implies --likelihood learned.",
+    )(func)
+    return click.option(
+        "--likelihood",
+        type=click.Choice(["synthetic", "learned"]),
+        default="synthetic",
+        show_default=True,
+        help="How features are compared with the model: the mean of a few seeded "
+        "realisations at each point, or a likelihood learned from simulations over the priors "
+        "and the posterior (smooth; χ²₁'s 3.84 is its profile threshold).",
+    )(func)
+
+
+def _likelihood(method: str, reuse: Path | None) -> dict:
+    """FitOptions' likelihood keywords from ``--likelihood`` and ``--reuse-likelihood``."""
+    if reuse is None:
+        return {"likelihood": method}
+    return {"likelihood": "learned", "reuse_likelihood": str(reuse)}
+
+
+def _write_learned(result, output: Path | None, doc: dict) -> None:
+    """Store a learned likelihood beside the JSON (X.json → X.likelihood.h5)."""
+    if output is None or result.learned is None:
+        return
+    from .likelihood.store import write_learned
+
+    learned = result.learned
+    path = output.with_suffix(".likelihood.h5")
+    write_learned(
+        path,
+        learned.likelihood,
+        learned.design,
+        key=learned.key,
+        seed=learned.seed,
+        options=learned.options,
+    )
+    doc["fit"]["likelihood"]["file"] = str(path)
+    click.echo(f"wrote {path} (the learned likelihood; --reuse-likelihood reuses it)", err=True)
+
+
 def _priors(texts) -> dict:
     """``--prior`` values → ``FitOptions.priors``; a bad one is a usage error naming it."""
     from .inference.parameters import parse_prior
@@ -266,6 +314,7 @@ def simulate(**o) -> None:
     help="What the fit compares: the band PSDs, or those and the drive-cycle-folded "
     "statistics of Δθ* (FitOptions.features).",
 )
+@_likelihood_options
 @click.option(
     "--quick",
     is_flag=True,
@@ -290,6 +339,8 @@ def identify(
     starts,
     drive,
     features,
+    likelihood,
+    reuse,
     quick,
     suggest,
     report_file,
@@ -311,10 +362,12 @@ def identify(
         drive=drive,
         features=features,
         priors=_priors(priors),
+        **_likelihood(likelihood, reuse),
         **{k: v for k, v in given.items() if v},
     )
     result = run(recordings, options, progress=_progress(quiet))
     text, doc = format_table(result), result.to_json()
+    _write_learned(result, output, doc)
     if suggest:
         from .inference.design import DESIGN_REALISATIONS, plan_document
         from .inference.design import suggest as plan
@@ -351,6 +404,7 @@ def identify(
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="Seeds the fit and chain.")
 @click.option("--quick-fit", is_flag=True, help="Start from a FitOptions.quick() fit.")
+@_likelihood_options
 @_output_options(
     "the credible intervals and diagnostics", "the trace, pairwise-marginal and predictive plots"
 )
@@ -373,6 +427,8 @@ def sample(
     discard,
     seed,
     quick_fit,
+    likelihood,
+    reuse,
     output,
     plot_dir,
     report_file,
@@ -411,7 +467,9 @@ def sample(
             "report shows the identification it starts from",
             err=True,
         )
-    fit_options = (FitOptions.quick if quick_fit else FitOptions)(seed=seed, priors=_priors(priors))
+    fit_options = (FitOptions.quick if quick_fit else FitOptions)(
+        seed=seed, priors=_priors(priors), **_likelihood(likelihood, reuse)
+    )
     options = SampleOptions(
         n_walkers=walkers, n_steps=steps, discard=discard, seed=seed, fit=fit_options
     )

@@ -39,6 +39,7 @@ from ..util import stamped
 from .across import lubrication_starts
 from .group import group_estimates
 from .laplace import Laplace, laplace_at
+from .learned import identify_learned
 from .least_squares import LM_REJECTIONS, Refined, refine_starts
 from .options import FitOptions
 from .problem import Problem, problem_from, release_states
@@ -213,11 +214,15 @@ def identify(
     and pins the oil's viscosity, which a boundary recording alone cannot separate from ``a``
     and ``h_min``.
 
-    ``options`` defaults to ``FitOptions()``; ``progress`` receives one-line messages while
-    the fit works. Raises :class:`~rattlefit.errors.RattlefitError` when the recordings
-    cannot be fitted jointly or an option names a parameter the fit does not have.
+    ``options`` defaults to ``FitOptions()``; with ``FitOptions(likelihood="learned")`` the
+    fit runs on a likelihood learned from simulations
+    (:func:`~rattlefit.inference.learned.identify_learned`). ``progress`` receives one-line
+    messages while the fit works. Raises :class:`~rattlefit.errors.RattlefitError` when the
+    recordings cannot be fitted jointly or an option names a parameter the fit does not have.
     """
     options = options or FitOptions()
+    if options.likelihood.method == "learned":
+        return identify_learned(recordings, options, progress=progress)
     t_start = time.perf_counter()
     say = stamped(progress, t_start)  # progress, stamped with the time since the start
     platform = platform_info()

@@ -230,6 +230,50 @@ class ExperimentalOptions:
         )
 
 
+#: How a fit's features are compared with the model (``LikelihoodOptions.method``).
+LIKELIHOODS = ("synthetic", "learned")
+
+
+@dataclasses.dataclass(frozen=True)
+class LikelihoodOptions:
+    """Which likelihood the fit uses, and the learned one's simulation budget.
+
+    method : ``"synthetic"`` (the mean of a few seeded realisations at each point, weighted
+        by the band spread at the optimum: the ensemble, noise, search and profile groups) or
+        ``"learned"`` (the features' distribution learned from simulations over the priors
+        and the posterior, :mod:`rattlefit.likelihood`). Default ``"synthetic"``.
+    initial : simulations per recording of the learned likelihood's space-filling round.
+        Default 1024.
+    rounds : further rounds drawn from the current posterior. Default 3.
+    per_round : simulations per recording in each further round. Default 512.
+    check_realisations : simulations at the optimum and at each interval end that check the
+        learned likelihood against the simulator. Default 24.
+    reuse : a stored learned likelihood of this test point (a file written by
+        :func:`~rattlefit.likelihood.store.write_learned`, e.g. ``identify -o``'s
+        ``*.likelihood.h5``) to start from instead of learning: only where its check against
+        the simulator fails are further rounds simulated. Default None.
+    """
+
+    method: str = "synthetic"
+    initial: int = 1024
+    rounds: int = 3
+    per_round: int = 512
+    check_realisations: int = 24
+    reuse: str | None = None
+
+    def __post_init__(self):
+        _check_choice("likelihood", "likelihood", self.method, LIKELIHOODS)
+        _check(self.initial >= 16, f"FitOptions.learning_initial must be ≥ 16, got {self.initial}")
+        _check(self.rounds >= 0, f"FitOptions.learning_rounds must be ≥ 0, got {self.rounds}")
+        _check(
+            self.per_round >= 1, f"FitOptions.learning_per_round must be ≥ 1, got {self.per_round}"
+        )
+        _check(
+            self.check_realisations >= 2,
+            f"FitOptions.check_realisations must be ≥ 2, got {self.check_realisations}",
+        )
+
+
 #: Each flat option name → (group, field), in the order result JSON and chain files use.
 FLAT_FIELDS: dict[str, tuple[str, str]] = {
     "n_realisations": ("ensemble", "n_realisations"),
@@ -263,6 +307,12 @@ FLAT_FIELDS: dict[str, tuple[str, str]] = {
     "regime_threshold": ("ensemble", "regime_threshold"),
     "regime": ("ensemble", "regime"),
     "features": ("ensemble", "features"),
+    "likelihood": ("likelihood", "method"),
+    "learning_initial": ("likelihood", "initial"),
+    "learning_rounds": ("likelihood", "rounds"),
+    "learning_per_round": ("likelihood", "per_round"),
+    "check_realisations": ("likelihood", "check_realisations"),
+    "reuse_likelihood": ("likelihood", "reuse"),
     "priors": ("", "priors"),
 }
 
@@ -272,6 +322,7 @@ _GROUPS = {
     "search": SearchOptions,
     "profile": ProfileOptions,
     "experimental": ExperimentalOptions,
+    "likelihood": LikelihoodOptions,
 }
 
 #: The :meth:`FitOptions.quick` preset, as flat options.
@@ -285,6 +336,9 @@ QUICK = dict(
     profile_rounds=0,
     profile_bisections=0,
     profile_continuation=0,
+    learning_initial=512,
+    learning_rounds=2,
+    learning_per_round=256,
 )
 #: The :meth:`FitOptions.optimum_only` preset, as flat options.
 OPTIMUM_ONLY = dict(
@@ -307,6 +361,8 @@ class FitOptions:
     search : :class:`SearchOptions`, the starts and Levenberg–Marquardt.
     profile : :class:`ProfileOptions`, the profile intervals.
     experimental : :class:`ExperimentalOptions`, alternatives no default uses.
+    likelihood : :class:`LikelihoodOptions`, the synthetic or the learned likelihood; a
+        method's name (``"learned"``) stands for its options with the default budget.
     seed : seeds every random draw of the fit (release states, dither, encoder phases,
         starts); reported in the result. Default 0.
     priors : parameter name → replacement :class:`~rattlefit.inference.parameters.ParameterSpec`
@@ -322,6 +378,7 @@ class FitOptions:
     search: SearchOptions
     profile: ProfileOptions
     experimental: ExperimentalOptions
+    likelihood: LikelihoodOptions
     seed: int
     priors: dict
 
@@ -333,16 +390,20 @@ class FitOptions:
         search: SearchOptions | None = None,
         profile: ProfileOptions | None = None,
         experimental: ExperimentalOptions | None = None,
+        likelihood: LikelihoodOptions | None = None,
         seed: int = 0,
         priors: dict | None = None,
         **flat,
     ):
+        if isinstance(likelihood, str):  # FitOptions(likelihood="learned"), and to_dict's form
+            likelihood = LikelihoodOptions(method=likelihood)
         given = dict(
             ensemble=ensemble,
             noise=noise,
             search=search,
             profile=profile,
             experimental=experimental,
+            likelihood=likelihood,
         )
         updates: dict[str, dict] = {g: {} for g in _GROUPS}
         for key, value in flat.items():

@@ -41,10 +41,14 @@ from pathlib import Path
 
 import emcee
 import h5py
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 from ..errors import RattlefitError
 from ..io.recording import Recording
+from ..likelihood.model import LearnedLikelihood
+from ..likelihood.store import GROUP, Learned, read_group, write_group
 from ..reproducibility import platform_info
 from . import arviz_io
 from .forward import evaluate
@@ -144,6 +148,26 @@ class LogPosterior:
         if np.any(ok):
             out[ok] += self.log_likelihood(zs[ok])
         return np.where(np.isfinite(out), out, -np.inf)
+
+
+class LearnedLogPosterior(LogPosterior):
+    """log p(z | d) on a learned likelihood
+    (:class:`~rattlefit.likelihood.model.LearnedLikelihood`): the same priors and contract as
+    :class:`LogPosterior`, each recording's likelihood the Gaussian its emulator predicts
+    (``−½ (χ² + log det C)``). ``n_evaluations`` counts the points evaluated; nothing is
+    simulated."""
+
+    def __init__(self, specs: Sequence[ParameterSpec], like: LearnedLikelihood):
+        self.specs = tuple(specs)
+        self.like = like
+        self.terms = jax.jit(jax.vmap(like.chi2_terms))
+        self.n_evaluations = 0
+
+    def log_likelihood(self, zs) -> np.ndarray:
+        zs = np.atleast_2d(np.asarray(zs, dtype=float))
+        chi2, logdet = (np.asarray(x) for x in self.terms(jnp.asarray(zs)))
+        self.n_evaluations += len(zs)
+        return -0.5 * np.sum(chi2 + logdet, axis=1)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -279,9 +303,12 @@ class ChainContext:
     z: np.ndarray
     covariance_z: np.ndarray
     data: np.ndarray
-    noise: NoiseModel
+    noise: NoiseModel | None
     recordings: list[str]
     seed: int
+    #: a fit on the learned likelihood: the likelihood itself (a fit in this process), or
+    #: the chain file that stores it (group ``rattlefit/learned_likelihood``)
+    learned: Learned | Path | None = None
 
 
 def write_context(path: Path, ctx: ChainContext) -> None:
@@ -294,18 +321,28 @@ def write_context(path: Path, ctx: ChainContext) -> None:
         g.attrs["version"] = CHAIN_VERSION
         g.attrs["fit_options"] = _options_json(ctx.fit_options)
         g.attrs["recordings"] = json.dumps(ctx.recordings)
-        g.attrs["sigma_dof"] = ctx.noise.sigma_dof
         g.attrs["seed"] = ctx.seed
-        for name, value in (
-            ("z", ctx.z),
-            ("covariance_z", ctx.covariance_z),
-            ("data", ctx.data),
-            ("sigma", ctx.noise.sigma),
-            ("whiten", ctx.noise.whiten),
-            ("row_scale", ctx.noise.row_scale),
-            ("chi2_recordings", ctx.noise.chi2_recordings),
-        ):
+        arrays = [("z", ctx.z), ("covariance_z", ctx.covariance_z), ("data", ctx.data)]
+        if ctx.noise is not None:
+            g.attrs["sigma_dof"] = ctx.noise.sigma_dof
+            arrays += [
+                ("sigma", ctx.noise.sigma),
+                ("whiten", ctx.noise.whiten),
+                ("row_scale", ctx.noise.row_scale),
+                ("chi2_recordings", ctx.noise.chi2_recordings),
+            ]
+        for name, value in arrays:
             g.create_dataset(name, data=np.asarray(value, dtype=float))
+        if isinstance(ctx.learned, Learned):
+            learned = ctx.learned
+            write_group(
+                g.create_group(GROUP),
+                learned.likelihood,
+                learned.design,
+                key=learned.key,
+                seed=learned.seed,
+                options=learned.options,
+            )
 
 
 def read_context(path: Path) -> ChainContext | None:
@@ -329,14 +366,16 @@ def read_context(path: Path) -> ChainContext | None:
                     f"{path}: /rattlefit@format: expected {CHAIN_FORMAT} version "
                     f"{CHAIN_VERSION}, got {g.attrs.get('format')} {g.attrs.get('version')}"
                 )
-            arr = {k: np.asarray(g[k]) for k in g}
-            noise = NoiseModel(
-                arr["sigma"],
-                arr["whiten"],
-                arr["row_scale"],
-                arr["chi2_recordings"],
-                int(g.attrs["sigma_dof"]),
-            )
+            arr = {k: np.asarray(g[k]) for k in g if k != GROUP}
+            noise = None
+            if "sigma" in arr:
+                noise = NoiseModel(
+                    arr["sigma"],
+                    arr["whiten"],
+                    arr["row_scale"],
+                    arr["chi2_recordings"],
+                    int(g.attrs["sigma_dof"]),
+                )
             return ChainContext(
                 _options_from_json(g.attrs["fit_options"]),
                 arr["z"],
@@ -345,6 +384,7 @@ def read_context(path: Path) -> ChainContext | None:
                 noise,
                 json.loads(g.attrs["recordings"]),
                 int(g.attrs["seed"]),
+                path if GROUP in g else None,
             )
     except RattlefitError:
         raise
@@ -447,8 +487,11 @@ def run_chain(
 
 def _context_of(fit: FitResult, recordings: Sequence[Recording], seed: int) -> ChainContext:
     """A new chain's context from the fit it starts at."""
-    if fit.noise is None:
-        raise RattlefitError("sample: the fit result carries no noise model (run identify)")
+    if fit.noise is None and fit.learned is None:
+        raise RattlefitError(
+            "sample: the fit result carries neither a noise model nor a learned likelihood "
+            "(run identify in this process)"
+        )
     return ChainContext(
         fit.options,
         np.asarray(fit.z),
@@ -457,6 +500,7 @@ def _context_of(fit: FitResult, recordings: Sequence[Recording], seed: int) -> C
         fit.noise,
         [str(r.path) for r in recordings],
         seed,
+        fit.learned,
     )
 
 
@@ -478,6 +522,15 @@ def _target(
             f"{path}: /rattlefit/data: this chain was run on other recordings "
             f"({', '.join(ctx.recordings)}); give those, or a new --backend file"
         )
+    if isinstance(ctx.learned, Learned):
+        return problem, LearnedLogPosterior(
+            problem.specs, ctx.learned.likelihood.replace_data(data)
+        )
+    if ctx.learned is not None:  # stored in the chain file
+        with h5py.File(ctx.learned, "r") as f:
+            where = f"{ctx.learned}: /rattlefit/{GROUP}"
+            stored = read_group(f["rattlefit"][GROUP], problem, where)
+        return problem, LearnedLogPosterior(problem.specs, stored.likelihood)
     mean_features = functools.partial(_mean_features, problem)
     return problem, LogPosterior(problem.specs, data, ctx.noise, mean_features)
 
@@ -530,7 +583,10 @@ def sample(
     problem, target = _target(recordings, ctx, path, None if resumed else fit)
     specs = problem.specs
     hdf = None if path is None else _chain_backend(path, ctx, resumed)
-    say(f"{ctx.fit_options.n_realisations} simulated realisations per point")
+    if isinstance(target, LearnedLogPosterior):
+        say("the learned likelihood: no simulation per point")
+    else:
+        say(f"{ctx.fit_options.n_realisations} simulated realisations per point")
     sampler = run_chain(
         target,
         ctx.z,

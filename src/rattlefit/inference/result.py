@@ -103,6 +103,12 @@ class FitResult:
         not serialised. Rebuild it from the recordings with :meth:`problem_for`.
     profiles : each free parameter's profile, ``(value in SI, Δcost above the optimum's)``
         pairs in increasing value; an interval is where Δcost < ``profile["threshold"]``.
+    likelihood : with ``FitOptions(likelihood="learned")``, how the likelihood was learned
+        (simulations, rounds, their wall times and rate) and its check against fresh
+        simulations (:mod:`rattlefit.likelihood.check`); empty otherwise.
+    learned : the :class:`~rattlefit.likelihood.store.Learned` likelihood of such a fit (the
+        likelihood, its design, test-point key and seed), for the posterior and for
+        :func:`~rattlefit.likelihood.store.write_learned`; not in the JSON.
     """
 
     parameters: dict[str, ParameterEstimate]
@@ -131,6 +137,8 @@ class FitResult:
     platform: dict = dataclasses.field(default_factory=dict, compare=False)
     problem: Problem | None = dataclasses.field(default=None, repr=False, compare=False)
     profiles: dict[str, list[tuple[float, float]]] = dataclasses.field(default_factory=dict)
+    likelihood: dict = dataclasses.field(default_factory=dict)
+    learned: object = dataclasses.field(default=None, repr=False, compare=False)
 
     def problem_for(self, recordings) -> Problem:
         """The fit's problem, with its band spread at the optimum: :attr:`problem` when the
@@ -213,6 +221,7 @@ class FitResult:
                 "profile": self.profile,
                 "profiles": {k: [list(p) for p in v] for k, v in self.profiles.items()},
                 "correlation": {"names": self.names, "matrix": self.correlation.tolist()},
+                "likelihood": self.likelihood or {"method": "synthetic"},
                 "options": self.options.to_dict(),  # flat, priors as their specs
             },
             "spectra": {

@@ -113,19 +113,25 @@ class FeatureEmulator(eqx.Module):
         s = self.y_scale
         return self.y_shift + s * mean, cov * s[:, None] * s[None, :]
 
+    def moments(self, u):
+        """The features' mean (F,) at ``u``, their chaotic covariance (F, F; the members'
+        average) and the emulator's error covariance (F, F; the members' spread of the
+        mean)."""
+        mean, cov = self.member_moments(u)
+        m = jnp.mean(mean, axis=0)
+        d = mean - m
+        return m, jnp.mean(cov, axis=0), d.T @ d / mean.shape[0]
+
     def predict(self, u):
         """The features' mean (F,) and covariance (F, F) at ``u``: the ensemble's mixture
         moments, so the members' disagreement (the emulator's error) adds to the chaotic
         spread."""
-        mean, cov = self.member_moments(u)
-        m = jnp.mean(mean, axis=0)
-        d = mean - m
-        return m, jnp.mean(cov, axis=0) + d.T @ d / mean.shape[0]
+        m, chaotic, error = self.moments(u)
+        return m, chaotic + error
 
     def emulator_variance(self, u):
         """The members' variance of the mean (F,): the emulator's own error at ``u``."""
-        mean, _ = self.member_moments(u)
-        return jnp.var(mean, axis=0)
+        return jnp.diagonal(self.moments(u)[2])
 
 
 def fit_emulator(

@@ -21,11 +21,9 @@ import numpy as np
 import optimistix as optx
 from scipy import stats
 
+from ..inference.profile import CHI2_1_95 as CHI2_95
 from .design import EDGE
 from .model import LearnedLikelihood
-
-#: χ²₁'s 95 % quantile: the profile threshold of a 95 % interval.
-CHI2_95 = float(stats.chi2.ppf(0.95, 1))
 
 #: A profile point this far below the optimum's cost means the optimum was not the least:
 #: the fit starts again from it.

@@ -150,23 +150,28 @@ def best_points(like: LearnedLikelihood, u, k: int) -> np.ndarray:
 
 def learn_likelihood(
     problem: Problem,
-    options: LearningOptions = LearningOptions(),
+    options: LearningOptions | None = None,
     *,
     seed: int | np.random.SeedSequence = 0,
+    start: tuple[LearnedLikelihood, Design] | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> tuple[LearnedLikelihood, Design, tuple[RoundRecord, ...]]:
     """Learn the likelihood of ``problem``'s recordings in rounds (module docstring).
 
-    Returns the learned likelihood, the design it was trained on, and a record per round.
+    ``start`` (a likelihood and its design, e.g. a stored one of this test point) replaces
+    round 0: only the posterior rounds run, on top of its design. Returns the learned
+    likelihood, the design it was trained on, and a record per round.
     """
+    options = options or LearningOptions()
     say = progress or (lambda _msg: None)
     root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
     design_seed, *round_seeds = root.spawn(options.rounds + 1)
     cores = max(len(jax.local_devices()), 1)
     records = []
-    design = None
-    like = None
+    like, design = start if start is not None else (None, None)
     for k in range(options.rounds + 1):
+        if k == 0 and start is not None:
+            continue
         s_design, s_sim, s_train = (design_seed if k == 0 else round_seeds[k - 1]).spawn(3)
         if k == 0:
             n = options.initial

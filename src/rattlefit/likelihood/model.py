@@ -84,6 +84,10 @@ class LearnedLikelihood(eqx.Module):
         prior = -0.5 * jnp.sum(self.prior_rows(z) ** 2)
         return -0.5 * tempering * jnp.sum(chi2 + logdet) + prior + jac
 
+    def replace_data(self, data) -> LearnedLikelihood:
+        """The same likelihood for other measured features ``data`` (R, F)."""
+        return eqx.tree_at(lambda m: m.data, self, jnp.asarray(data))
+
     @property
     def n_features(self) -> int:
         return int(self.data.size)

@@ -44,9 +44,14 @@ def format_table(result: FitResult) -> str:
     per = ""
     if len(result.chi2_recordings) > 1:
         per = " (" + " + ".join(f"{c:.1f}" for c in result.chi2_recordings) + " by recording)"
+    search = "quasi-Newton" if result.likelihood.get("method") == "learned" else (
+        "Levenberg–Marquardt"
+    )
+    state = "converged" if result.success else "stopped at its step limit"
     lines.append(
-        f"χ² = {result.chi2:.1f}{per} on {result.dof} dof; {result.n_iterations} "
-        f"Levenberg–Marquardt steps; seed {result.seed}; {result.wall_time:.1f} s"
+        f"χ² = {result.chi2:.1f}{per} on {result.dof} dof (p = {result.p_value:.2g}); "
+        f"{search} {state} after {result.n_iterations} steps; seed {result.seed}; "
+        f"{result.wall_time:.1f} s"
     )
     if "threshold" in result.profile:
         lines.append(_profile_line(result.profile))
@@ -79,7 +84,13 @@ def format_table(result: FitResult) -> str:
 
 
 def _profile_line(profile: dict) -> str:
-    """How the 95 % intervals' profile threshold was set: χ²₁'s 3.84 plus an allowance."""
+    """How the 95 % intervals' profile threshold was set: χ²₁'s 3.84 plus an allowance (none
+    on the learned likelihood, which has no Monte Carlo noise)."""
+    if profile.get("likelihood") == "learned":
+        return (
+            f"95 % intervals: where the profile cost is within {profile['threshold']:.2f} of the "
+            "optimum's (χ²₁; the learned likelihood is smooth, with its own error in its spread)"
+        )
     sd, source = profile["monte_carlo_sd"], "the Monte Carlo noise of a cost difference"
     rough = profile.get("roughness_sd", profile.get("roughness_rms", 0.0))
     if rough > sd:

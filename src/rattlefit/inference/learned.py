@@ -1,0 +1,211 @@
+"""Identification on the learned likelihood (``FitOptions(likelihood="learned")``).
+
+The stages: the problem (:func:`~rattlefit.inference.problem.problem_from`, for its
+recordings, parameters and simulator); the likelihood learned in rounds
+(:func:`~rattlefit.likelihood.learn_likelihood`); the optimum, every parameter's profile and
+the Laplace covariance on it (:func:`~rattlefit.likelihood.estimate.fit_learned`); the
+learned likelihood checked against fresh simulations at the optimum and at the drag torque's
+and each film's interval ends (:mod:`rattlefit.likelihood.check`); the
+:class:`~rattlefit.inference.result.FitResult`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable, Sequence
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..io.recording import Recording
+from ..likelihood import LearningOptions, learn_likelihood
+from ..likelihood.check import check_points
+from ..likelihood.estimate import CHI2_95, LearnedFit, fit_learned
+from ..likelihood.learn import best_points
+from ..likelihood.store import Learned, read_learned, test_point_key
+from ..reproducibility import platform_info
+from ..util import stamped
+from .options import FitOptions
+from .problem import Problem, problem_from
+from .result import FitResult, estimates_of
+
+#: Starts of the quasi-Newton search: the design points of least learned cost.
+LEARNED_STARTS = 8
+
+
+def learning_options(options: FitOptions) -> LearningOptions:
+    """The learning budget of ``options.likelihood``."""
+    lk = options.likelihood
+    return LearningOptions(initial=lk.initial, rounds=lk.rounds, per_round=lk.per_round)
+
+
+def checked_points(problem: Problem, fit: LearnedFit) -> dict[str, np.ndarray]:
+    """The points whose simulations check the learned likelihood: the optimum, and the
+    profile's optimum at each end of the drag torque's and each film's interval."""
+    points = {"optimum": fit.optimum.z}
+    for i, prof in fit.profiles.items():
+        name = problem.specs[i].name
+        if name != "drag_torque" and not name.startswith("a"):
+            continue
+        for end, zi in (("lower", prof.lower), ("upper", prof.upper)):
+            k = int(np.argmin(np.abs(prof.z - zi)))
+            points[f"{name} {end}"] = prof.points[k]
+    return points
+
+
+def profiles_of(problem: Problem, fit: LearnedFit) -> dict[str, list[tuple[float, float]]]:
+    """Each parameter's profile as ``[(value in SI, Δcost), …]`` in increasing value."""
+    return {
+        problem.specs[i].name: [
+            (float(problem.specs[i].value(z)), float(d)) for z, d in zip(p.z, p.delta, strict=True)
+        ]
+        for i, p in fit.profiles.items()
+    }
+
+
+def learned_result(
+    problem: Problem,
+    learned: Learned,
+    fit: LearnedFit,
+    rigs,
+    options: FitOptions,
+    *,
+    info: dict,
+    wall: float,
+    platform: dict,
+) -> FitResult:
+    """The :class:`FitResult` of a fit on the learned likelihood."""
+    like = learned.likelihood
+    z = fit.optimum.z
+    cov = fit.covariance_z
+    sd = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
+    z_lo = np.array([fit.profiles[i].lower for i in range(len(z))])
+    z_hi = np.array([fit.profiles[i].upper for i in range(len(z))])
+    mean, total = (np.asarray(x) for x in like.moments(jnp.asarray(z)))
+    chi2_rec, _ = like.chi2_terms(jnp.asarray(z))
+    lubrications = [r.recording.operating.lubrication for r in rigs]
+    p = len(problem.specs)
+    converged = fit.optimum.converged
+    return FitResult(
+        parameters=estimates_of(problem, z, z_lo, z_hi, lubrications),
+        correlation=cov / np.outer(sd, sd),
+        names=[s.name for s in problem.specs],
+        chi2=fit.chi2,
+        dof=fit.dof,
+        n_iterations=fit.optimum.steps,
+        success=converged,
+        message=("converged" if converged else "step limit reached")
+        + " (quasi-Newton on the learned likelihood)",
+        seed=options.seed,
+        wall_time=wall,
+        recordings=[str(r.recording.path) for r in rigs],
+        options=options,
+        z=z,
+        covariance_z=cov,
+        measured_features=[np.asarray(d) for d in problem.data],
+        fitted_features=list(mean),
+        sigma=[np.sqrt(np.diag(c)) for c in total],
+        band_centers=problem.bands.centers,
+        map_params=[
+            {
+                k: float(v)
+                for k, v in problem.params_for(jnp.asarray(z), i, jnp.zeros(p)).as_dict().items()
+            }
+            for i in range(problem.n_rec)
+        ],
+        chi2_recordings=[float(c) for c in np.asarray(chi2_rec)],
+        regime_share=[],
+        noise=None,
+        profile={"threshold": CHI2_95, "likelihood": "learned"},
+        platform=platform,
+        problem=problem,
+        profiles=profiles_of(problem, fit),
+        likelihood=info,
+        learned=learned,
+    )
+
+
+def learn_or_reuse(problem: Problem, options: FitOptions, seed, say) -> tuple[Learned, dict]:
+    """The learned likelihood of ``problem``: read from ``options.likelihood.reuse`` when
+    given, else learned in rounds; and what it cost (simulations, rounds)."""
+    lk = options.likelihood
+    learning = learning_options(options)
+    if lk.reuse is not None:
+        stored = read_learned(lk.reuse, problem)
+        say(f"reusing the learned likelihood of this test point in {lk.reuse}")
+        return stored, {"reused": str(lk.reuse), "rounds": []}
+    say(f"learning the likelihood from {learning.budget} simulations per recording")
+    like, design, rounds = learn_likelihood(problem, learning, seed=seed, progress=say)
+    learned = Learned(like, design, test_point_key(problem), options.seed, learning.emulator)
+    return learned, {"rounds": [round_info(r) for r in rounds]}
+
+
+def round_info(r) -> dict:
+    """One learning round's record as JSON."""
+    return {
+        "simulations": r.simulations,
+        "simulate_s": r.simulate_seconds,
+        "train_s": r.train_seconds,
+        "simulations_per_s_per_core": r.per_second_per_core,
+    }
+
+
+def fit_and_check(problem: Problem, learned: Learned, options: FitOptions, seed, say):
+    """The fit on ``learned`` and its check against fresh simulations."""
+    like = learned.likelihood
+    say("optimum and profiles on the learned likelihood …")
+    starts = best_points(like, learned.design.u, LEARNED_STARTS)
+    fit = fit_learned(like, starts, range(len(problem.specs)))
+    say(f"χ² = {fit.chi2:.1f} on {fit.dof} dof (p = {fit.p_value:.2g})")
+    n = options.likelihood.check_realisations
+    say(f"checking the learned likelihood against {n} fresh simulations per point …")
+    checks = check_points(problem, like, checked_points(problem, fit), n, seed)
+    failed = [c.label for c in checks if not c.passed]
+    if failed:
+        say(f"  the learned likelihood misses the simulator at: {', '.join(failed)}")
+    return fit, checks
+
+
+def identify_learned(
+    recordings: Sequence[Recording],
+    options: FitOptions,
+    *,
+    progress: Callable[[str], None] | None = None,
+) -> FitResult:
+    """:func:`~rattlefit.inference.identify.identify` on the learned likelihood (module
+    docstring). Every random draw descends from ``options.seed``. A reused likelihood
+    (``options.likelihood.reuse``) whose check fails at this recording's optimum or interval
+    ends gets one more round of simulations there, and the fit is repeated."""
+    t_start = time.perf_counter()
+    say = stamped(progress, t_start)
+    platform = platform_info()
+    problem, rigs, _ = problem_from(recordings, options)
+    say(f"{len(rigs)} recording(s), {len(problem.specs)} parameters (seed {options.seed})")
+    s_learn, s_check, s_more = np.random.SeedSequence(options.seed).spawn(3)
+    learned, info = learn_or_reuse(problem, options, s_learn, say)
+    fit, checks = fit_and_check(problem, learned, options, s_check, say)
+    if "reused" in info and not all(c.passed for c in checks):
+        say("one more round of simulations where the reused likelihood misses …")
+        more = dataclasses.replace(learning_options(options), rounds=1)
+        start = (learned.likelihood, learned.design)
+        like, design, rounds = learn_likelihood(
+            problem, more, seed=s_more, start=start, progress=say
+        )
+        learned = dataclasses.replace(learned, likelihood=like, design=design)
+        info["rounds"] += [round_info(r) for r in rounds]
+        fit, checks = fit_and_check(problem, learned, options, s_check, say)
+    info = {
+        "method": "learned",
+        **info,
+        "simulations_per_recording": int(learned.design.u.shape[0]),
+        "key": learned.key,
+        "profile_restarts": fit.restarts,
+        "check": [c.as_dict() for c in checks],
+        "check_passed": all(c.passed for c in checks),
+    }
+    wall = time.perf_counter() - t_start
+    say(f"done in {wall:.1f} s")
+    return learned_result(
+        problem, learned, fit, rigs, options, info=info, wall=wall, platform=platform
+    )

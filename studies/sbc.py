@@ -1,0 +1,286 @@
+"""Simulation-based calibration (SBC) of the learned likelihood.
+
+At each operating point the likelihood is learned once over the priors (amortised: a
+space-filling design, no posterior rounds). Each case then draws parameters from the priors,
+simulates one recording's features at them with rattlefit's simulator (encoders included),
+and samples the posterior on the learned likelihood (emcee, started at the learned optimum).
+Where the likelihood is calibrated, the rank of the truth among posterior draws is uniform,
+and the central intervals cover the truth at their level (Talts et al. 2018).
+
+    python studies/sbc.py [--cases 70] [--points boundary,oil_jet,dry] [--initial 8192]
+                          [--seed 0] [--json studies/results/sbc.json]
+                          [--figure studies/results/sbc.png]
+
+Reports per parameter (``a``, ``drag_torque``, ``viscosity_scale``, ``stiffness_scale``,
+``min_film``, ``backlash[0]`` and the derived ``squeeze_momentum``): the rank histogram and
+its χ² uniformity p-value, the coverage of the 50/90/95 % central intervals, and the mean
+log-bias of the posterior median. Cases are seeded from ``--seed``; every case is
+reproducible.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+from scipy import stats
+
+import rattlefit as rf
+from rattlefit.inference.options import FitOptions
+from rattlefit.inference.posterior import LearnedLogPosterior, run_chain
+from rattlefit.inference.problem import Problem, problem_from
+from rattlefit.io.recording import OperatingPoint
+from rattlefit.likelihood import EmulatorOptions, LearningOptions, learn_likelihood
+from rattlefit.likelihood.design import EDGE, simulate_design, unit_of_z, z_of_unit
+from rattlefit.likelihood.estimate import fit_learned
+from rattlefit.likelihood.learn import best_points
+from rattlefit.physics.model import squeeze_momentum
+from rattlefit.physics.oil import dynamic_viscosity
+from rattlefit.simulation.synthetic import synthesize
+
+#: The operating points: (pair, lubrication, centre distance mm, fluctuation %, frequency Hz,
+#: oil temperature °C). The violent headline boundary point, a mild oil-jet point and a dry
+#: point.
+POINTS = {
+    "boundary": ("II", "boundary", 65.6, 20, 16.0, 20.0),
+    "oil_jet": ("II", "oil_jet", 65.0, 20, 4.0, 25.0),
+    "dry": ("I", "dry", 65.4, 10, 16.0, 20.0),
+}
+LEVELS = (0.5, 0.9, 0.95)
+#: Posterior draws per case, for the rank statistic (ranks 0…DRAWS).
+DRAWS = 99
+BINS = 10
+
+
+def problem_at(point: str, seed: int) -> Problem:
+    """The fit's problem at an operating point (a recording made there gives its rig; its own
+    features are replaced case by case)."""
+    pair, lub, cd, pct, f, temp = POINTS[point]
+    g = rf.table2_pair(pair, center_distance_mm=cd)
+    op = OperatingPoint(lub, temp, 52.36, 52.36 * pct / 100, f)
+    mu = dynamic_viscosity(temp, 156.5, 15.7, 890.0)
+    rec, _ = synthesize(g, op, rf.RattleParams(1e-4, 0.025, mu, g.backlash), seed=seed)
+    problem, _, _ = problem_from([rec], FitOptions(seed=seed))
+    return problem
+
+
+def prior_draw(problem: Problem, rng) -> np.ndarray:
+    """Parameters (z) drawn from the fit's priors: log-uniform over the range, or log-normal
+    truncated to it."""
+    u = []
+    for s in problem.specs:
+        if s.log_sd is None:
+            u.append(rng.uniform(EDGE, 1 - EDGE))
+            continue
+        while True:
+            logv = np.log(s.center) + s.log_sd * rng.normal()
+            x = (logv - np.log(s.lower)) / s.log_range
+            if EDGE < x < 1 - EDGE:
+                u.append(x)
+                break
+    return z_of_unit(np.asarray(u))
+
+
+def momentum(problem: Problem, z) -> np.ndarray:
+    """The squeeze momentum (N s) at points ``z`` (K, P)."""
+    z = np.atleast_2d(z)
+    v = {s.name: np.asarray(s.value(z[:, i])) for i, s in enumerate(problem.specs)}
+    return np.asarray(
+        squeeze_momentum(
+            v["a"],
+            v["viscosity_scale"] * float(problem.viscosities[0]),
+            v["min_film"],
+            float(problem.models.curvature_radius[0]),
+            float(problem.models.axial_width[0]),
+        )
+    )
+
+
+def log_values(problem: Problem, z) -> dict[str, np.ndarray]:
+    """Each parameter's log value, and the squeeze momentum's, at points ``z`` (K, P)."""
+    z = np.atleast_2d(z)
+    out = {s.name: np.log(np.asarray(s.value(z[:, i]))) for i, s in enumerate(problem.specs)}
+    out["squeeze_momentum"] = np.log(momentum(problem, z))
+    return out
+
+
+def one_case(problem, like, z_true, seed: np.random.SeedSequence, steps: int) -> dict:
+    """One SBC case: the truth's rank, interval coverage and the median's log-bias."""
+    s_sim, s_chain = seed.spawn(2)
+    data = simulate_design(problem, unit_of_z(z_true)[None], 0, s_sim)
+    like_k = like.replace_data(data)
+    fit = fit_learned(like_k, best_points(like_k, DESIGN_U, 8), [])
+    target = LearnedLogPosterior(problem.specs, like_k)
+    chain_seed = int(np.random.default_rng(s_chain).integers(2**31))
+    sampler = run_chain(
+        target, fit.optimum.z, fit.covariance_z, n_walkers=32, n_steps=steps, seed=chain_seed
+    )
+    kept = sampler.get_chain(discard=steps // 3, flat=True)
+    pick = np.linspace(0, len(kept) - 1, DRAWS).astype(int)
+    draws = log_values(problem, kept[pick])
+    truth = log_values(problem, z_true)
+    row = {"chi2": fit.chi2, "dof": fit.dof}
+    for name, d in draws.items():
+        t = float(truth[name][0])
+        entry = {"truth": t, "rank": int(np.sum(d < t)), "median": float(np.median(d))}
+        for level in LEVELS:
+            q = 50 * (1 - level)
+            lo, hi = np.percentile(d, [q, 100 - q])
+            entry[f"covered_{round(100 * level)}"] = bool(lo <= t <= hi)
+        row[name] = entry
+    return row
+
+
+DESIGN_U = None  # the current point's design, whose best points start each case's search
+
+
+def summarise(rows: list[dict], names: list[str]) -> dict:
+    """Per parameter: rank histogram, its uniformity p, coverage per level, mean log-bias."""
+    out = {}
+    for name in names:
+        ranks = np.array([r[name]["rank"] for r in rows])
+        hist = np.histogram(ranks, bins=BINS, range=(0, DRAWS + 1))[0]
+        p = float(stats.chisquare(hist).pvalue) if len(rows) >= BINS else float("nan")
+        bias = np.array([r[name]["median"] - r[name]["truth"] for r in rows])
+        out[name] = {
+            "rank_histogram": hist.tolist(),
+            "uniformity_p": p,
+            **{
+                f"coverage_{round(100 * lv)}": float(
+                    np.mean([r[name][f"covered_{round(100 * lv)}"] for r in rows])
+                )
+                for lv in LEVELS
+            },
+            "mean_log_bias": float(np.mean(bias)),
+        }
+    return out
+
+
+def figure(summary: dict, path: Path, title: str) -> None:
+    """Rank histograms, one panel per parameter, with the uniform expectation's 99 % band."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = list(summary)
+    fig, axes = plt.subplots(1, len(names), figsize=(2.4 * len(names), 2.6), sharey=True)
+    n = sum(summary[names[0]]["rank_histogram"])
+    lo, hi = stats.binom.ppf([0.005, 0.995], n, 1 / BINS)
+    for ax, name in zip(axes, names, strict=True):
+        s = summary[name]
+        ax.bar(range(BINS), s["rank_histogram"], width=0.9, color="C0")
+        ax.axhspan(lo, hi, color="0.85", zorder=0)
+        ax.set_title(f"{name}\np={s['uniformity_p']:.2g}, 95%: {s['coverage_95']:.0%}", fontsize=8)
+        ax.set_xticks([])
+    axes[0].set_ylabel("cases per rank decile")
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    fig.savefig(tmp, dpi=150)
+    os.replace(tmp, path)
+
+
+def main() -> None:
+    global DESIGN_U
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", type=int, default=70, help="cases per operating point")
+    ap.add_argument("--points", default="boundary,oil_jet,dry")
+    ap.add_argument("--initial", type=int, default=8192, help="simulations learned per point")
+    ap.add_argument("--steps", type=int, default=1200, help="chain steps per case")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--json", default="studies/results/sbc.json")
+    ap.add_argument("--figure", default="studies/results/sbc.png")
+    args = ap.parse_args()
+    devices = rf.use_cpu_cores()
+    root = np.random.SeedSequence(args.seed)
+    points = args.points.split(",")
+    all_rows, per_point = [], {}
+    t_start = time.perf_counter()
+    learning = LearningOptions(initial=args.initial, rounds=0, emulator=EmulatorOptions())
+    for point, s_point in zip(points, root.spawn(len(points)), strict=True):
+        s_problem, s_learn, s_cases = s_point.spawn(3)
+        problem = problem_at(point, int(s_problem.generate_state(1)[0]))
+        t0 = time.perf_counter()
+        like, design, rounds = learn_likelihood(problem, learning, seed=s_learn, progress=print)
+        DESIGN_U = design.u
+        learn_s = time.perf_counter() - t0
+        rng = np.random.default_rng(s_cases)
+        rows = []
+        for k, s_case in enumerate(s_cases.spawn(args.cases)):
+            z_true = prior_draw(problem, rng)
+            t1 = time.perf_counter()
+            row = one_case(problem, like, z_true, s_case, args.steps)
+            row["point"] = point
+            rows.append(row)
+            print(
+                f"[{point} {k + 1}/{args.cases}] {time.perf_counter() - t1:.1f} s; χ² "
+                f"{row['chi2']:.1f}/{row['dof']}; ranks "
+                + " ".join(f"{n}:{row[n]['rank']}" for n in ("a", "drag_torque")),
+                flush=True,
+            )
+        names = [n for n in rows[0] if isinstance(rows[0][n], dict)]
+        per_point[point] = {
+            "operating_point": dict(
+                zip(
+                    (
+                        "pair",
+                        "lubrication",
+                        "center_distance_mm",
+                        "fluctuation_pct",
+                        "frequency_hz",
+                        "oil_temperature_c",
+                    ),
+                    POINTS[point],
+                    strict=True,
+                )
+            ),
+            "learn_s": learn_s,
+            "simulations": int(design.u.shape[0]),
+            "simulations_per_s_per_core": rounds[0].per_second_per_core,
+            "summary": summarise(rows, names),
+        }
+        all_rows += rows
+    names = [n for n in all_rows[0] if isinstance(all_rows[0][n], dict)]
+    summary = summarise(all_rows, names)
+    commit = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True
+    ).stdout.strip()
+    doc = {
+        "what": "simulation-based calibration of the learned likelihood (amortised over the "
+        "priors at each operating point)",
+        "command": "python studies/sbc.py "
+        + " ".join(f"--{k} {v}" for k, v in vars(args).items() if k not in ("json", "figure")),
+        "commit": commit,
+        "date": time.strftime("%Y-%m-%d"),
+        "platform": rf.platform_info(),
+        "devices": devices,
+        "seed": args.seed,
+        "cases": len(all_rows),
+        "wall_s": time.perf_counter() - t_start,
+        "summary": summary,
+        "points": per_point,
+        "rows": all_rows,
+    }
+    path = Path(args.json)
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(doc, indent=1))
+    os.replace(tmp, path)
+    figure(summary, Path(args.figure), f"SBC, {len(all_rows)} cases at {', '.join(points)}")
+    for name, s in summary.items():
+        print(
+            f"{name:18s} uniform p {s['uniformity_p']:.3f}; coverage 50/90/95 "
+            f"{s['coverage_50']:.2f}/{s['coverage_90']:.2f}/{s['coverage_95']:.2f}; "
+            f"mean log-bias {s['mean_log_bias']:+.3f}"
+        )
+
+
+if __name__ == "__main__":
+    jax.config.update("jax_enable_x64", True)
+    main()
