@@ -40,6 +40,7 @@ from rattlefit.likelihood import EmulatorOptions, LearningOptions, learn_likelih
 from rattlefit.likelihood.design import EDGE, simulate_design, unit_of_z, z_of_unit
 from rattlefit.likelihood.estimate import fit_learned
 from rattlefit.likelihood.learn import best_points
+from rattlefit.likelihood.store import read_learned, test_point_key, write_learned
 from rattlefit.physics.model import squeeze_momentum
 from rattlefit.physics.oil import dynamic_viscosity
 from rattlefit.simulation.synthetic import synthesize
@@ -187,6 +188,30 @@ def figure(summary: dict, path: Path, title: str) -> None:
     os.replace(tmp, path)
 
 
+def learned_at(problem, point: str, learning, seed, args):
+    """The point's learned likelihood, its design and the simulation rate (per s per core):
+    read from ``args.cache`` when kept there for this seed and budget, else learned (and kept
+    there)."""
+    path = None
+    if args.cache:
+        Path(args.cache).mkdir(parents=True, exist_ok=True)
+        path = Path(args.cache) / f"{point}_{args.seed}_{args.initial}.likelihood.h5"
+        if path.exists():
+            stored = read_learned(path, problem)
+            return stored.likelihood, stored.design, float("nan")
+    like, design, rounds = learn_likelihood(problem, learning, seed=seed, progress=print)
+    if path is not None:
+        write_learned(
+            path,
+            like,
+            design,
+            key=test_point_key(problem),
+            seed=args.seed,
+            options=learning.emulator,
+        )
+    return like, design, rounds[0].per_second_per_core
+
+
 def main() -> None:
     global DESIGN_U
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -197,6 +222,11 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", default="studies/results/sbc.json")
     ap.add_argument("--figure", default="studies/results/sbc.png")
+    ap.add_argument(
+        "--cache",
+        help="a directory that keeps each point's learned likelihood (POINT.likelihood.h5) and "
+        "reuses it when the budget and seed match",
+    )
     args = ap.parse_args()
     devices = rf.use_cpu_cores()
     root = np.random.SeedSequence(args.seed)
@@ -208,7 +238,7 @@ def main() -> None:
         s_problem, s_learn, s_cases = s_point.spawn(3)
         problem = problem_at(point, int(s_problem.generate_state(1)[0]))
         t0 = time.perf_counter()
-        like, design, rounds = learn_likelihood(problem, learning, seed=s_learn, progress=print)
+        like, design, rate = learned_at(problem, point, learning, s_learn, args)
         DESIGN_U = design.u
         learn_s = time.perf_counter() - t0
         rng = np.random.default_rng(s_cases)
@@ -243,10 +273,15 @@ def main() -> None:
             ),
             "learn_s": learn_s,
             "simulations": int(design.u.shape[0]),
-            "simulations_per_s_per_core": rounds[0].per_second_per_core,
+            "simulations_per_s_per_core": rate,
             "summary": summarise(rows, names),
         }
         all_rows += rows
+        write(args, per_point, all_rows, devices, time.perf_counter() - t_start, points)
+
+
+def write(args, per_point: dict, all_rows: list, devices: int, wall: float, points) -> None:
+    """Write the result file (atomically) and the figure from the cases so far."""
     names = [n for n in all_rows[0] if isinstance(all_rows[0][n], dict)]
     summary = summarise(all_rows, names)
     commit = subprocess.run(
@@ -263,7 +298,7 @@ def main() -> None:
         "devices": devices,
         "seed": args.seed,
         "cases": len(all_rows),
-        "wall_s": time.perf_counter() - t_start,
+        "wall_s": wall,
         "summary": summary,
         "points": per_point,
         "rows": all_rows,

@@ -16,10 +16,10 @@ or ``native`` for none. On other architectures (aarch64) and on GPUs nothing is 
 The cap is not the whole story: the CPU model matters too, because LLVM tunes its instruction
 selection (which multiply–adds it fuses, how it orders a vectorised sum) for the CPU it finds,
 so the same code, JAX version and cap can give another realisation on another CPU model.
-Results are therefore reproducible for a given seed, JAX version, device count, instruction-set
-cap **and CPU model**, not across machines in general; :func:`platform_info` reports all of
-them (every fit's JSON carries it), and a seeded statistical test must hold with a margin over
-realisations, not at one.
+Results are therefore reproducible for a given seed, JAX version, instruction-set cap **and
+CPU model** (the device count does not matter), not across machines in general;
+:func:`platform_info` reports them (every fit's JSON carries it), and a seeded statistical
+test must hold with a margin over realisations, not at one.
 """
 
 from __future__ import annotations

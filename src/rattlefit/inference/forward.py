@@ -9,6 +9,8 @@ derivatives of chaotic rattle grow like e^{λt} and are useless over a recording
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import equinox as eqx
 import jax
 import numpy as np
@@ -46,18 +48,19 @@ def features_chunk(problem: Problem, rows):
     return problem.features_of_rows(rows)
 
 
-#: Rows per device of every compiled evaluation. A lockstep step has a fixed cost, so larger
-#: batches cost less per member, but a batch waits for its slowest member; 24 (the
-#: realisations of one point in the covariance and profile stages) gives each device one
-#: point. Results do not depend on the chunking only while every device gets the same row
-#: count: XLA vectorises the step over the rows and compiles other counts to code that rounds
-#: differently, which chaos grows into another realisation.
+#: Rows of every compiled evaluation: one block, run on one device. A lockstep step has a
+#: fixed cost, so larger blocks cost less per member, but a block waits for its slowest
+#: member; 24 (the realisations of one point in the covariance and profile stages) gives each
+#: device one point. Results do not depend on the blocking only while every block has the
+#: same row count (or one that XLA vectorises alike, a multiple of 4): XLA vectorises the step
+#: over the rows and compiles other counts to code that rounds differently, which chaos grows
+#: into another realisation.
 CHUNK_ROWS = 24
 
 
 def chunk_size() -> int:
-    """Rows per compiled call, over all local devices: a fixed size, so one program serves
-    every evaluation."""
+    """Rows per round of evaluation over all local devices (one block of :data:`CHUNK_ROWS`
+    each)."""
     return CHUNK_ROWS * len(jax.local_devices())
 
 
@@ -86,18 +89,34 @@ def evaluate(problem: Problem, zs, y0=None, realisations=None) -> np.ndarray:
 
 def evaluate_rows(problem: Problem, rows) -> np.ndarray:
     """Features (N, F), numpy, of ``rows`` in the layout of :meth:`Problem.rows` (point,
-    recording, release state, dither, encoder phase; N rows), each simulated once, through
-    the one compiled program of :func:`chunk_size` rows (the last chunk padded with repeats
-    of the last row). A row's features do not depend on the rows it shares a chunk with.
+    recording, release state, dither, encoder phase; N rows), each simulated once.
+
+    The rows are cut into blocks of :data:`CHUNK_ROWS` (the last padded with repeats of its
+    last row), and block k runs on local device k mod D through the one compiled program of
+    a block: the same program on every device, so a row's features depend neither on the
+    rows it shares a block with nor on how many devices there are. Blocks are dispatched
+    from one thread per device, so the devices (CPU cores or GPUs) work at once.
     """
     rows = [np.asarray(x) for x in rows]
-    n, c = rows[0].shape[0], chunk_size()
+    n, c = rows[0].shape[0], CHUNK_ROWS
     pad = -n % c
     rows = [np.concatenate([x, np.repeat(x[-1:], pad, axis=0)]) for x in rows]
-    chunks = [
-        features_chunk(problem, tuple(x[i : i + c] for x in rows)) for i in range(0, n + pad, c)
-    ]
-    return np.concatenate([np.asarray(x) for x in chunks])[:n]
+    devices = jax.local_devices()
+    starts = list(range(0, n + pad, c))
+
+    def on_device(d: int) -> list[np.ndarray]:
+        placed = jax.device_put(problem, devices[d])
+        out = []
+        for i in starts[d :: len(devices)]:
+            block = jax.device_put(tuple(x[i : i + c] for x in rows), devices[d])
+            out.append(np.asarray(features_chunk(placed, block)))
+        return out
+
+    # one thread per device: XLA releases the GIL while a block runs
+    with ThreadPoolExecutor(len(devices)) as pool:
+        per_device = list(pool.map(on_device, range(len(devices))))
+    blocks = [per_device[k % len(devices)][k // len(devices)] for k in range(len(starts))]
+    return np.concatenate(blocks)[:n]
 
 
 def jacobian_at(problem: Problem, z) -> tuple[np.ndarray, np.ndarray]:

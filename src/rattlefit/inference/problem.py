@@ -34,7 +34,6 @@ from ..physics.model import (
     film_for_squeeze_momentum,
     share_stiffness_tables,
 )
-from ..simulation.parallel import map_blocks
 from ..simulation.solve import (
     absolute_tolerances,
     quantised_relative_motion,
@@ -184,9 +183,11 @@ class Problem(eqx.Module):
     def features_of_rows(self, rows):
         """Features of every row (see :meth:`rows`): (N, B).
 
-        Each device's share of the rows is solved in one lockstep batch
-        (:func:`~rattlefit.simulation.solve.solve_rows`); every row has its own recording's
-        model and drive, its parameters and its release state.
+        The rows are solved in one lockstep batch on one device
+        (:func:`~rattlefit.simulation.solve.solve_rows`;
+        :func:`~rattlefit.inference.forward.evaluate_rows` spreads blocks of rows over the
+        devices); every row has its own recording's model and drive, its parameters and its
+        release state.
         """
         opts = dict(self.static)
         rate = opts["sample_rate"]
@@ -223,7 +224,7 @@ class Problem(eqx.Module):
             sol = solve_rows(models, params, drives, y0, **opts)
             return jax.vmap(measure)(sol, models, r, phase)
 
-        return map_blocks(block, rows)
+        return block(rows)
 
     def regime_target(self):
         """The band features whose regime the ensemble statistics describe

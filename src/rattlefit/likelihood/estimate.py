@@ -139,11 +139,20 @@ def profile(
     return Profile(index, zs, delta, np.stack([p[2] for p in pts]), float(lower), float(upper))
 
 
+#: The Laplace covariance's largest sd in ``z``: a direction the cost barely curves (a film
+#: half-length on dry flanks, a parameter at a range's end) gets this, not an unbounded one.
+MAX_SD_Z = 4.0
+
+
 def laplace_covariance(like: LearnedLikelihood, z) -> np.ndarray:
     """The Laplace covariance in ``z`` (P, P): the inverse of half the cost's Hessian (the
-    cost is −2 log density), pseudo-inverted where it is singular."""
+    cost is −2 log density), each eigenvalue floored at 1/:data:`MAX_SD_Z`² so that it is
+    positive definite where the cost is flat or not convex."""
     h = np.asarray(jax.hessian(like.cost)(jnp.asarray(z)))
-    return np.linalg.pinv(0.5 * (h + h.T) / 2.0, hermitian=True)
+    info = 0.25 * (h + h.T)
+    w, v = np.linalg.eigh(info)
+    w = np.maximum(w, 1.0 / MAX_SD_Z**2)
+    return (v / w) @ v.T
 
 
 @dataclasses.dataclass(frozen=True)

@@ -11,8 +11,9 @@ runs its share with ``jax.lax.map``. With one device :func:`map_rows` is exactly
 agree to the last bit). :func:`map_blocks` gives each device its whole share at once, for the
 lockstep integrator of :mod:`rattlefit.simulation.lockstep`; a vectorised transcendental may
 round differently in another batch layout, and rattle's chaos grows that into another
-realisation, so results computed that way (every fit) are reproducible for a given seed and
-device count.
+realisation, so results computed that way depend on the device count. A fit's evaluations do
+not use it: :func:`rattlefit.inference.forward.evaluate_rows` runs fixed-size blocks, one
+program for every device, so that its results do not.
 
 On a GPU, JAX already lists every GPU, and :func:`map_rows` shards over them unchanged.
 """

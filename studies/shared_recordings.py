@@ -1,0 +1,104 @@
+"""The learned likelihood on someone else's simulator: every recording in
+``../shared/recordings`` without an unmodelled effect, identified with
+``FitOptions(likelihood="learned")``, its intervals against ``truth.json``.
+
+    python studies/shared_recordings.py [--seed 0] [--json studies/results/shared_recordings.json]
+
+Per recording: the 95 % intervals of ``a``, the drag torque and the viscosity against the
+truth, whether each is two-sided, χ² and its p-value, the check against fresh simulations,
+and the wall time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import time
+from pathlib import Path
+
+import rattlefit as rf
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = ROOT.parent / "shared" / "recordings"
+
+
+def entry(p, truth: float) -> dict:
+    """One parameter's interval against its truth."""
+    return {
+        "truth": truth,
+        "estimate": p.estimate,
+        "lower": p.lower,
+        "upper": p.upper,
+        "bound": p.bound,
+        "holds": bool(p.lower <= truth <= p.upper),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--json", default=str(ROOT / "studies" / "results" / "shared_recordings.json"))
+    ap.add_argument("names", nargs="*", help="recordings (default: every one without effects)")
+    args = ap.parse_args()
+    devices = rf.use_cpu_cores()
+    truth = json.loads((SHARED / "truth.json").read_text())
+    names = args.names or sorted(n for n, t in truth.items() if not t["unmodelled_effects"])
+    rows = []
+    for name in names:
+        path = next(SHARED.rglob(f"{name}.h5"))
+        t0 = time.perf_counter()
+        res = rf.identify(
+            [rf.read_recording(path)], rf.FitOptions(seed=args.seed, likelihood="learned")
+        )
+        t = truth[name]
+        params = {
+            "a": entry(res.parameters["a"], t["a_mm"] * 1e-3),
+            "drag_torque": entry(res.parameters["drag_torque"], t["drag_torque_Nm"]),
+            "viscosity": entry(res.parameters["viscosity"], t["viscosity_Pa_s"]),
+        }
+        r = {
+            "recording": name,
+            "chi2": res.chi2,
+            "dof": res.dof,
+            "p_value": res.p_value,
+            "check_passed": res.likelihood["check_passed"],
+            "wall_s": time.perf_counter() - t0,
+            "parameters": params,
+        }
+        rows.append(r)
+        held = " ".join(f"{k}:{'IN' if v['holds'] else 'OUT'}" for k, v in params.items())
+        tb = params["drag_torque"]
+        print(
+            f"{name}: {held}; T_b [{tb['lower']:.4g}, {tb['upper']:.4g}] (truth {tb['truth']}); "
+            f"χ² {r['chi2']:.1f}/{r['dof']} (p {r['p_value']:.2g}); check "
+            f"{'passed' if r['check_passed'] else 'FAILED'}; {r['wall_s']:.0f} s",
+            flush=True,
+        )
+    held = sum(v["holds"] for r in rows for v in r["parameters"].values())
+    total = sum(len(r["parameters"]) for r in rows)
+    commit = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True
+    ).stdout.strip()
+    doc = {
+        "what": "the learned likelihood on the independent simulator's recordings without effects",
+        "command": "python studies/shared_recordings.py --seed "
+        + str(args.seed)
+        + (" " + " ".join(args.names) if args.names else ""),
+        "commit": commit,
+        "date": time.strftime("%Y-%m-%d"),
+        "platform": rf.platform_info(),
+        "devices": devices,
+        "summary": f"{held}/{total} intervals hold their truth over {len(rows)} recordings",
+        "rows": rows,
+    }
+    path = Path(args.json)
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(doc, indent=1))
+    os.replace(tmp, path)
+    print(doc["summary"])
+
+
+if __name__ == "__main__":
+    main()
