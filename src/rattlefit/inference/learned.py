@@ -21,14 +21,15 @@ import numpy as np
 from ..io.recording import Recording
 from ..likelihood import LearningOptions, learn_likelihood
 from ..likelihood.check import check_points
-from ..likelihood.estimate import CHI2_95, LearnedFit, fit_learned
+from ..likelihood.estimate import CHI2_95, LearnedFit, LogMomentum, fit_learned, profile_derived
 from ..likelihood.learn import best_points
 from ..likelihood.store import Learned, read_learned, test_point_key
 from ..reproducibility import platform_info
 from ..util import stamped
+from .group import flanks, group_films, group_spec
 from .options import FitOptions
 from .problem import Problem, problem_from
-from .result import FitResult, estimates_of
+from .result import FitResult, ParameterEstimate, estimate, estimates_of, with_groups
 
 #: Starts of the quasi-Newton search: the design points of least learned cost.
 LEARNED_STARTS = 8
@@ -64,6 +65,35 @@ def profiles_of(problem: Problem, fit: LearnedFit) -> dict[str, list[tuple[float
     }
 
 
+def momentum_estimates(
+    problem: Problem, learned: Learned, fit: LearnedFit, lubrications, say
+) -> tuple[dict[str, ParameterEstimate], dict[str, list[tuple[float, float]]]]:
+    """Each boundary film's squeeze momentum (N s; what a boundary recording pins), profiled
+    on the learned likelihood: its estimates and its profiles as ``(M, Δcost)`` pairs."""
+    found, profiles = {}, {}
+    for film in group_films(problem, lubrications):
+        mu, radius, width = flanks(problem, film)
+        g = LogMomentum(
+            problem.index(film),
+            problem.index("viscosity_scale"),
+            problem.index("min_film"),
+            mu,
+            radius,
+            width,
+            problem.specs,
+        )
+        say(f"profiling the squeeze momentum of {film} …")
+        prof = profile_derived(learned.likelihood, g, fit.optimum)
+        spec = group_spec(problem, film)
+        m = float(np.exp(g(jnp.asarray(fit.optimum.z))))
+        ends = [spec.z_of(float(np.exp(v))) for v in (prof.lower, prof.upper)]
+        found[spec.name] = estimate(spec, spec.z_of(m), *ends)
+        profiles[spec.name] = [
+            (float(np.exp(v)), float(d)) for v, d in zip(prof.z, prof.delta, strict=True)
+        ]
+    return found, profiles
+
+
 def learned_result(
     problem: Problem,
     learned: Learned,
@@ -74,6 +104,7 @@ def learned_result(
     info: dict,
     wall: float,
     platform: dict,
+    groups: tuple[dict, dict] = ({}, {}),
 ) -> FitResult:
     """The :class:`FitResult` of a fit on the learned likelihood."""
     like = learned.likelihood
@@ -88,7 +119,7 @@ def learned_result(
     p = len(problem.specs)
     converged = fit.optimum.converged
     return FitResult(
-        parameters=estimates_of(problem, z, z_lo, z_hi, lubrications),
+        parameters=with_groups(estimates_of(problem, z, z_lo, z_hi, lubrications), groups[0]),
         correlation=cov / np.outer(sd, sd),
         names=[s.name for s in problem.specs],
         chi2=fit.chi2,
@@ -120,7 +151,7 @@ def learned_result(
         profile={"threshold": CHI2_95, "likelihood": "learned"},
         platform=platform,
         problem=problem,
-        profiles=profiles_of(problem, fit),
+        profiles={**profiles_of(problem, fit), **groups[1]},
         likelihood=info,
         learned=learned,
     )
@@ -185,6 +216,7 @@ def identify_learned(
     s_learn, s_check, s_more = np.random.SeedSequence(options.seed).spawn(3)
     learned, info = learn_or_reuse(problem, options, s_learn, say)
     fit, checks = fit_and_check(problem, learned, options, s_check, say)
+    lubrications = [r.recording.operating.lubrication for r in rigs]
     if "reused" in info and not all(c.passed for c in checks):
         say("one more round of simulations where the reused likelihood misses …")
         more = dataclasses.replace(learning_options(options), rounds=1)
@@ -204,8 +236,19 @@ def identify_learned(
         "check": [c.as_dict() for c in checks],
         "check_passed": all(c.passed for c in checks),
     }
+    groups = ({}, {})
+    if options.profile.group:
+        groups = momentum_estimates(problem, learned, fit, lubrications, say)
     wall = time.perf_counter() - t_start
     say(f"done in {wall:.1f} s")
     return learned_result(
-        problem, learned, fit, rigs, options, info=info, wall=wall, platform=platform
+        problem,
+        learned,
+        fit,
+        rigs,
+        options,
+        info=info,
+        wall=wall,
+        platform=platform,
+        groups=groups,
     )

@@ -22,6 +22,7 @@ import optimistix as optx
 from scipy import stats
 
 from ..inference.profile import CHI2_1_95 as CHI2_95
+from ..physics.model import squeeze_momentum
 from .design import EDGE
 from .model import LearnedLikelihood
 
@@ -124,9 +125,15 @@ def profile(
     down = walk(like, opt, index, -1, step, threshold)[::-1]
     up = walk(like, opt, index, +1, step, threshold)
     pts = [*down, (float(opt.z[index]), 0.0, opt.z), *up]
+    return interval_of(index, pts, len(down), threshold)
+
+
+def interval_of(index: int, pts, k0: int, threshold: float) -> Profile:
+    """The :class:`Profile` of points ``pts`` ((value, Δ, z), increasing, the optimum at
+    ``k0``): the interval's ends where Δ crosses ``threshold`` (linear in Δ), or the last
+    points where it does not."""
     zs = np.array([p[0] for p in pts])
     delta = np.array([p[1] for p in pts])
-    k0 = len(down)
     lower, upper = zs[0], zs[-1]
     for k in range(k0, 0, -1):
         if delta[k - 1] > threshold:
@@ -153,6 +160,88 @@ def laplace_covariance(like: LearnedLikelihood, z) -> np.ndarray:
     w, v = np.linalg.eigh(info)
     w = np.maximum(w, 1.0 / MAX_SD_Z**2)
     return (v / w) @ v.T
+
+
+class LogMomentum(eqx.Module):
+    """The log of a film's squeeze momentum (N s,
+    :func:`~rattlefit.physics.model.squeeze_momentum`) as a function of ``z``: the film's,
+    the viscosity factor's and ``h_min``'s indices, the catalogue viscosity (Pa s), the
+    curvature radius and axial width (m) of the flanks it is stated on, and the specs."""
+
+    film: int
+    viscosity: int
+    min_film: int
+    mu: float
+    radius: float
+    width: float
+    specs: tuple = eqx.field(static=True)
+
+    def __call__(self, z):
+        value = [s.value(z[i]) for i, s in enumerate(self.specs)]
+        momentum = squeeze_momentum(
+            value[self.film],
+            value[self.viscosity] * self.mu,
+            value[self.min_film],
+            self.radius,
+            self.width,
+        )
+        return jnp.log(momentum)
+
+
+#: Weight of the penalty that holds a derived quantity at its profile value: its log is
+#: held to about 1/√weight = 0.01.
+PENALTY = 1e4
+#: A profile point of a derived quantity whose log missed its value by more than this has
+#: reached the end of what the parameters' ranges allow.
+MISSED_VALUE = 0.05
+
+
+@eqx.filter_jit
+def minimise_held(like: LearnedLikelihood, g, z0, target, max_steps: int = 600):
+    """The least cost from ``z0`` with the derived quantity ``g(z)`` held near ``target``
+    by a quadratic penalty (:data:`PENALTY`): returns ``(z, cost without the penalty,
+    g(z))``."""
+
+    def cost(z, _):
+        return like.cost(z) + PENALTY * (g(z) - target) ** 2
+
+    solver = optx.BFGS(rtol=1e-8, atol=1e-8)
+    sol = optx.minimise(cost, solver, z0, max_steps=max_steps, throw=False)
+    return sol.value, like.cost(sol.value), g(sol.value)
+
+
+def walk_derived(like, g, opt: Optimum, direction: int, step: float, threshold: float):
+    """Profile points of ``g`` from the optimum outwards in ``direction`` (±1), ``step``
+    apart in its log (growing while far inside the threshold), until the cost is
+    ``threshold`` + 2 above the optimum's or ``g`` cannot be held at its value: a list of
+    (value, Δ, z)."""
+    value = float(g(jnp.asarray(opt.z)))
+    z_prev, out = jnp.asarray(opt.z), []
+    while True:
+        value += direction * step
+        z, c, reached = minimise_held(like, g, z_prev, jnp.asarray(value))
+        if abs(float(reached) - value) > MISSED_VALUE or not np.isfinite(float(c)):
+            return out
+        delta = float(c) - opt.cost
+        out.append((value, delta, np.asarray(z)))
+        if delta > threshold + 2 or len(out) > 60:
+            return out
+        z_prev = z
+        if delta < 0.25 * threshold:
+            step *= 1.5
+
+
+def profile_derived(
+    like: LearnedLikelihood, g, opt: Optimum, *, threshold: float = CHI2_95, step: float = 0.1
+) -> Profile:
+    """The profile of the derived quantity ``g`` (a function of ``z``, e.g.
+    :class:`LogMomentum`) around ``opt``: its values (in ``g``'s units) in increasing order,
+    each held by a penalty while the parameters are re-minimised. ``index`` is −1; an end
+    where ``g`` cannot go further (a range's end) stays the last value held."""
+    down = walk_derived(like, g, opt, -1, step, threshold)[::-1]
+    up = walk_derived(like, g, opt, +1, step, threshold)
+    pts = [*down, (float(g(jnp.asarray(opt.z))), 0.0, opt.z), *up]
+    return interval_of(-1, pts, len(down), threshold)
 
 
 @dataclasses.dataclass(frozen=True)
