@@ -99,6 +99,11 @@ def main() -> None:
                 f"(p {r['p_value']:.2g}); {r['wall_s']:.0f} s",
                 flush=True,
             )
+            write(args, rows, devices)
+
+
+def write(args, rows: list, devices: int) -> None:
+    """Write the result file (atomically) from the fits so far."""
     held = sum(v["holds"] for r in rows for v in r["parameters"].values())
     total = sum(len(r["parameters"]) for r in rows)
     commit = subprocess.run(
@@ -120,7 +125,7 @@ def main() -> None:
     tmp = path.with_name(f".{path.name}.tmp")
     tmp.write_text(json.dumps(doc, indent=1))
     os.replace(tmp, path)
-    print(doc["summary"])
+    print(doc["summary"], flush=True)
 
 
 if __name__ == "__main__":
