@@ -104,7 +104,8 @@ def main() -> None:
         "verdict": verdict,
         "measured": "wall time of each `rattlefit` process (compilation cache off) on "
         f"{Path(args.file).name}: identify (the baseline), identify --likelihood learned, "
-        "identify --reuse-likelihood (also with a warm compilation cache), sample --reuse-likelihood --steps 1500 --walkers 32 "
+        "identify --reuse-likelihood (also with a warm compilation cache), "
+        "sample --reuse-likelihood --steps 1500 --walkers 32 "
         "(its identify included; the chain's own time is the sampler's wall_time_s)",
         "command": "python benchmarks/learned_time.py " + Path(args.file).name,
         "results": {
