@@ -157,17 +157,30 @@ def learned_result(
     )
 
 
+def band_floor(problem: Problem, options: FitOptions) -> np.ndarray:
+    """The learned likelihood's variance floor (F,): ``NoiseOptions.sigma_floor`` squared on
+    each band, as the synthetic likelihood floors a band's spread (where rattle locks into a
+    periodic orbit the simulator's own spread vanishes, and a recording from another rig or
+    simulator differs from the model by more); nothing on the drive-cycle statistics."""
+    floor = np.zeros(problem.data.shape[-1])
+    floor[: problem.n_bands] = options.noise.sigma_floor**2
+    return floor
+
+
 def learn_or_reuse(problem: Problem, options: FitOptions, seed, say) -> tuple[Learned, dict]:
     """The learned likelihood of ``problem``: read from ``options.likelihood.reuse`` when
     given, else learned in rounds; and what it cost (simulations, rounds)."""
     lk = options.likelihood
     learning = learning_options(options)
+    floor = band_floor(problem, options)
     if lk.reuse is not None:
         stored = read_learned(lk.reuse, problem)
         say(f"reusing the learned likelihood of this test point in {lk.reuse}")
+        stored = dataclasses.replace(stored, likelihood=stored.likelihood.with_floor(floor))
         return stored, {"reused": str(lk.reuse), "rounds": []}
     say(f"learning the likelihood from {learning.budget} simulations per recording")
     like, design, rounds = learn_likelihood(problem, learning, seed=seed, progress=say)
+    like = like.with_floor(floor)
     learned = Learned(like, design, test_point_key(problem), options.seed, learning.emulator)
     return learned, {"rounds": [round_info(r) for r in rounds]}
 
@@ -224,6 +237,7 @@ def identify_learned(
         like, design, rounds = learn_likelihood(
             problem, more, seed=s_more, start=start, progress=say
         )
+        like = like.with_floor(band_floor(problem, options))
         learned = dataclasses.replace(learned, likelihood=like, design=design)
         info["rounds"] += [round_info(r) for r in rounds]
         fit, checks = fit_and_check(problem, learned, options, s_check, say)

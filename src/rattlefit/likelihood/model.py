@@ -2,7 +2,8 @@
 
 For each recording the features are Gaussian with the mean and covariance its
 :class:`~rattlefit.likelihood.emulator.FeatureEmulator` predicts at the parameters (the
-chaotic spread plus the emulator's own error); recordings are independent. The cost is
+chaotic spread plus the emulator's own error), plus an optional floor; recordings are
+independent. The cost is
 −2 log of the posterior density in the parameters' logs, less its constant: each recording's
 ``(y − m)ᵀ C⁻¹ (y − m) + log det C``, plus the squared prior rows of the parameters with a
 log-normal prior (a log-uniform prior is flat in the log). It is smooth and deterministic, and
@@ -31,6 +32,9 @@ class LearnedLikelihood(eqx.Module):
     emulators: tuple[FeatureEmulator, ...]
     data: jax.Array
     specs: tuple = eqx.field(static=True)
+    #: variance (F,) added to every recording's features: the floor of what any recording can
+    #: be compared with, whatever the simulator's own spread (zeros: none)
+    floor: jax.Array | None = None
 
     def log_values(self, z):
         """Each parameter's natural log value at ``z`` (P,)."""
@@ -40,10 +44,14 @@ class LearnedLikelihood(eqx.Module):
         return lower + span * s
 
     def moments(self, z):
-        """Each recording's predicted feature mean (R, F) and covariance (R, F, F) at ``z``."""
+        """Each recording's predicted feature mean (R, F) and covariance (R, F, F) at ``z``,
+        the :attr:`floor` included."""
         u = jax.nn.sigmoid(z)
         pairs = [e.predict(u) for e in self.emulators]
-        return jnp.stack([m for m, _ in pairs]), jnp.stack([c for _, c in pairs])
+        cov = jnp.stack([c for _, c in pairs])
+        if self.floor is not None:
+            cov = cov + jnp.diag(self.floor)[None]
+        return jnp.stack([m for m, _ in pairs]), cov
 
     def chi2_terms(self, z):
         """Each recording's ``(y − m)ᵀ C⁻¹ (y − m)`` (R,) and ``log det C`` (R,) at ``z``."""
@@ -83,6 +91,13 @@ class LearnedLikelihood(eqx.Module):
         jac = jnp.sum(jnp.log(s * (1 - s)))  # d log v / dz up to constant factors
         prior = -0.5 * jnp.sum(self.prior_rows(z) ** 2)
         return -0.5 * tempering * jnp.sum(chi2 + logdet) + prior + jac
+
+    def with_floor(self, floor) -> LearnedLikelihood:
+        """The same likelihood with the variance ``floor`` (F,) added to every recording's
+        features."""
+        return eqx.tree_at(
+            lambda m: m.floor, self, jnp.asarray(floor, dtype=float), is_leaf=lambda x: x is None
+        )
 
     def replace_data(self, data) -> LearnedLikelihood:
         """The same likelihood for other measured features ``data`` (R, F)."""

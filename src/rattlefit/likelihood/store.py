@@ -92,6 +92,8 @@ def write_group(
     )
     g.create_dataset("design_u", data=design.u)
     g.create_dataset("design_features", data=design.features)
+    if like.floor is not None:
+        g.create_dataset("floor", data=np.asarray(like.floor))
     for r, em in enumerate(like.emulators):
         e = g.create_group(f"emulator_{r}")
         e.attrs["columns"] = np.asarray(em.columns)
@@ -161,6 +163,8 @@ def read_group(g: h5py.Group, problem: Problem, where: str) -> Learned:
         loaded = [jnp.asarray(e[f"leaf_{k}"][()]) for k in range(len(leaves))]
         emulators.append(eqx.combine(jax.tree_util.tree_unflatten(treedef, loaded), rest))
     like = LearnedLikelihood(tuple(emulators), jnp.asarray(problem.data), problem.specs)
+    if "floor" in g:
+        like = like.with_floor(np.asarray(g["floor"]))
     return Learned(like, design, key, int(g.attrs["seed"]), options)
 
 
