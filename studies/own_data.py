@@ -12,11 +12,10 @@ likelihood's check, and the wall time. The aim: every interval holds its truth, 
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import subprocess
 import time
 from pathlib import Path
+
+from common import head_commit, held, write_result
 
 import rattlefit as rf
 from rattlefit.io.recording import read_truth
@@ -91,11 +90,11 @@ def main() -> None:
             res = rf.identify(recs, rf.FitOptions(seed=seed, likelihood="learned"))
             r = row(name, res, truths, time.perf_counter() - t0, seed)
             rows.append(r)
-            held = " ".join(
+            marks = " ".join(
                 f"{k}:{'IN' if v['holds'] else 'OUT'}" for k, v in r["parameters"].items()
             )
             print(
-                f"{name}, seed {seed}: {held}; χ² {r['chi2']:.1f}/{r['dof']} "
+                f"{name}, seed {seed}: {marks}; χ² {r['chi2']:.1f}/{r['dof']} "
                 f"(p {r['p_value']:.2g}); {r['wall_s']:.0f} s",
                 flush=True,
             )
@@ -104,11 +103,8 @@ def main() -> None:
 
 def write(args, rows: list, devices: int) -> None:
     """Write the result file (atomically) from the fits so far."""
-    held = sum(v["holds"] for r in rows for v in r["parameters"].values())
-    total = sum(len(r["parameters"]) for r in rows)
-    commit = subprocess.run(
-        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True
-    ).stdout.strip()
+    n_held, total = held(rows)
+    commit = head_commit()
     doc = {
         "what": "the learned likelihood on rattlefit's own data: notebook 2's joint fits at "
         "several fit seeds",
@@ -117,14 +113,11 @@ def write(args, rows: list, devices: int) -> None:
         "date": time.strftime("%Y-%m-%d"),
         "platform": rf.platform_info(),
         "devices": devices,
-        "summary": f"{held}/{total} intervals hold their truth; p > 0.01 in "
+        "summary": f"{n_held}/{total} intervals hold their truth; p > 0.01 in "
         f"{sum(r['p_value'] > 0.01 for r in rows)}/{len(rows)} fits",
         "rows": rows,
     }
-    path = Path(args.json)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(doc, indent=1))
-    os.replace(tmp, path)
+    write_result(args.json, doc)
     print(doc["summary"], flush=True)
 
 

@@ -21,14 +21,13 @@ reproducible.
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import subprocess
 import time
 from pathlib import Path
 
 import jax
 import numpy as np
+from common import head_commit, write_result
 from scipy import stats
 
 import rattlefit as rf
@@ -284,9 +283,7 @@ def write(args, per_point: dict, all_rows: list, devices: int, wall: float, poin
     """Write the result file (atomically) and the figure from the cases so far."""
     names = [n for n in all_rows[0] if isinstance(all_rows[0][n], dict)]
     summary = summarise(all_rows, names)
-    commit = subprocess.run(
-        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True
-    ).stdout.strip()
+    commit = head_commit()
     doc = {
         "what": "simulation-based calibration of the learned likelihood (amortised over the "
         "priors at each operating point)",
@@ -303,10 +300,7 @@ def write(args, per_point: dict, all_rows: list, devices: int, wall: float, poin
         "points": per_point,
         "rows": all_rows,
     }
-    path = Path(args.json)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(doc, indent=1))
-    os.replace(tmp, path)
+    write_result(args.json, doc)
     figure(summary, Path(args.figure), f"SBC, {len(all_rows)} cases at {', '.join(points)}")
     for name, s in summary.items():
         print(

@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import time
 from pathlib import Path
+
+from common import head_commit, held, write_result
 
 import rattlefit as rf
 
@@ -70,10 +70,10 @@ def main() -> None:
             "parameters": params,
         }
         rows.append(r)
-        held = " ".join(f"{k}:{'IN' if v['holds'] else 'OUT'}" for k, v in params.items())
+        marks = " ".join(f"{k}:{'IN' if v['holds'] else 'OUT'}" for k, v in params.items())
         tb = params["drag_torque"]
         print(
-            f"{name}: {held}; T_b [{tb['lower']:.4g}, {tb['upper']:.4g}] (truth {tb['truth']}); "
+            f"{name}: {marks}; T_b [{tb['lower']:.4g}, {tb['upper']:.4g}] (truth {tb['truth']}); "
             f"χ² {r['chi2']:.1f}/{r['dof']} (p {r['p_value']:.2g}); check "
             f"{'passed' if r['check_passed'] else 'FAILED'}; {r['wall_s']:.0f} s",
             flush=True,
@@ -83,11 +83,8 @@ def main() -> None:
 
 def write(args, rows: list, devices: int) -> None:
     """Write the result file (atomically) from the recordings so far."""
-    held = sum(v["holds"] for r in rows for v in r["parameters"].values())
-    total = sum(len(r["parameters"]) for r in rows)
-    commit = subprocess.run(
-        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True
-    ).stdout.strip()
+    n_held, total = held(rows)
+    commit = head_commit()
     doc = {
         "what": "the learned likelihood on the independent simulator's recordings without effects",
         "command": "python studies/shared_recordings.py --seed "
@@ -97,13 +94,10 @@ def write(args, rows: list, devices: int) -> None:
         "date": time.strftime("%Y-%m-%d"),
         "platform": rf.platform_info(),
         "devices": devices,
-        "summary": f"{held}/{total} intervals hold their truth over {len(rows)} recordings",
+        "summary": f"{n_held}/{total} intervals hold their truth over {len(rows)} recordings",
         "rows": rows,
     }
-    path = Path(args.json)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(doc, indent=1))
-    os.replace(tmp, path)
+    write_result(args.json, doc)
     print(doc["summary"], flush=True)
 
 
