@@ -56,7 +56,7 @@ BUILD_SEED = 0  # release states and dither draws of the problems built without 
 START_SEED = 0  # the scrambling of the Sobol' starts
 
 # Margins of the identifications' assertions.
-ESTIMATE_TOLERANCE = 0.2  # issue 3: an estimate reported as identified is within 20 % of truth
+ESTIMATE_TOLERANCE = 0.2  # an estimate reported as identified is within 20 % of truth
 #: the widest a[boundary] interval (upper/lower) a companion may leave: the single fit's spans a
 #: factor 5–12, a companion's about 1.5; the margin is for other realisations
 COMPANION_WIDTH = 2.5
@@ -143,7 +143,7 @@ def test_an_oil_jet_companion_identifies_the_boundary_film(mild_recording):
     a = result.parameters["a[boundary]"]
     # the companion narrows a[boundary] to a two-sided interval …
     assert a.bound in (None, "interval") and a.upper / a.lower < COMPANION_WIDTH, a
-    # … and issue 3: where a is reported identified (a factor ≤ IDENTIFIED_RATIO), the
+    # … and where a is reported identified (a factor ≤ IDENTIFIED_RATIO), the
     # estimate lands within ESTIMATE_TOLERANCE of the truth
     if a.identified:
         assert abs(a.estimate / truth["a[boundary]"] - 1) < ESTIMATE_TOLERANCE, a
@@ -165,7 +165,7 @@ def test_mild_rattle_tells_the_film_from_dry_flanks(mild_recording):
     # gives with a lower viscosity (the film's valley, FitOptions.profile_valley). So the
     # upper end may be the range's and no width is asked; only the lower end is.
     assert a.bound in (None, "interval", "lower") and a.lower > DRY_FILM, a
-    if a.identified:  # issue 3
+    if a.identified:  # then the estimate is within ESTIMATE_TOLERANCE
         assert abs(a.estimate / truth["a"] - 1) < ESTIMATE_TOLERANCE, a
     doc = result.to_json()
     assert set(TARGETS) <= set(doc["parameters"])
@@ -644,7 +644,7 @@ def test_estimate_reports_bounds_and_identification():
     assert e.identified and e.bound is None and e.estimate == pytest.approx(1e-4)
     assert (e.lower, e.upper) == pytest.approx((0.85e-4, 1.25e-4))
     # two-sided but wider: the interval, not identified (a factor 1.75 is good to about
-    # ±30 %, not to issue 3's 20 %), and still the optimum as the best estimate
+    # ±30 %, not to the identified 20 %), and still the optimum as the best estimate
     for lo, hi in ((0.8e-4, 1.4e-4), (0.4e-4, 2.5e-4)):
         e = estimate(a, z(1e-4), z(lo), z(hi))
         assert (e.identified, e.bound) == (False, "interval")
@@ -677,7 +677,7 @@ def test_estimate_reports_bounds_and_identification():
 
 
 def test_an_identified_estimate_lands_within_20_percent_as_often_as_the_interval_holds():
-    # issue 3: where a is reported identified, the estimate lands within 20 % of the truth.
+    # where a is reported identified, the estimate lands within 20 % of the truth.
     # With calibrated 95 % intervals whose log half-width is w, the log error of the estimate
     # is N(0, w/1.96); at the widest identified interval it must stay within 20 % at least as
     # often as the coverage aim (COVERAGE_AIM). Checked by simulation, not by the formula of the

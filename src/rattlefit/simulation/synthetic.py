@@ -192,7 +192,7 @@ def backlash_sweep(
     one recording per centre distance (mm), each with its own ``seed``, and the parameters it
     was simulated with (the film half-length ``a`` in m, the drag torque in N m and the
     viscosity in Pa s shared; the backlash the centre distance's). The defaults are the sweep
-    of issue 3's joint-fit criterion (tests/test_fit.py): pair II in boundary lubrication at
+    of the joint-fit criterion (tests/test_fit.py): pair II in boundary lubrication at
     20 °C, 10 % speed fluctuation at 8 Hz, at the ends and the middle of the paper's range of
     centre distances."""
     if len(center_distances_mm) != len(seeds):
