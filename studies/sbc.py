@@ -35,7 +35,7 @@ from rattlefit.inference.options import FitOptions
 from rattlefit.inference.posterior import LearnedLogPosterior, run_chain
 from rattlefit.inference.problem import Problem, problem_from
 from rattlefit.io.recording import OperatingPoint
-from rattlefit.likelihood import EmulatorOptions, LearningOptions, learn_likelihood
+from rattlefit.likelihood import LearningOptions, learn_likelihood
 from rattlefit.likelihood.design import EDGE, simulate_design, unit_of_z, z_of_unit
 from rattlefit.likelihood.estimate import fit_learned
 from rattlefit.likelihood.learn import best_points
@@ -206,7 +206,7 @@ def learned_at(problem, point: str, learning, seed, args):
             design,
             key=test_point_key(problem),
             seed=args.seed,
-            options=learning.emulator,
+            options=learning.density,
         )
     return like, design, rounds[0].per_second_per_core
 
@@ -232,7 +232,7 @@ def main() -> None:
     points = args.points.split(",")
     all_rows, per_point = [], {}
     t_start = time.perf_counter()
-    learning = LearningOptions(initial=args.initial, rounds=0, emulator=EmulatorOptions())
+    learning = LearningOptions(initial=args.initial, rounds=0)
     for point, s_point in zip(points, root.spawn(len(points)), strict=True):
         s_problem, s_learn, s_cases = s_point.spawn(3)
         problem = problem_at(point, int(s_problem.generate_state(1)[0]))

@@ -1,7 +1,7 @@
 """The learned likelihood (rattlefit.likelihood) against closed forms and rattlefit's own data.
 
-References the code under test did not produce: a closed-form feature distribution (the
-emulator must recover its mean and spread), the exact Gaussian profile of a linear-Gaussian
+References the code under test did not produce: a closed-form feature distribution that no
+Gaussian holds (the flow must learn its density), the exact Gaussian profile of a linear-Gaussian
 simulator (the learned profile interval must match it), and a recording rattlefit simulated
 with known truth (the learned intervals must hold it).
 """
@@ -14,57 +14,86 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from scipy import stats
 
 import rattlefit as rf
 from rattlefit.inference.group import flanks
 from rattlefit.inference.parameters import ParameterSpec
 from rattlefit.inference.problem import problem_from
 from rattlefit.io.recording import read_truth
-from rattlefit.likelihood import EmulatorOptions, LearnedLikelihood, fit_emulator
+from rattlefit.likelihood import DensityOptions, LearnedLikelihood, fit_density
 from rattlefit.likelihood.design import prior_box, sobol_design, z_of_unit
 from rattlefit.likelihood.estimate import CHI2_95, fit_learned
 from rattlefit.likelihood.store import read_learned, write_learned
 from rattlefit.physics.model import squeeze_momentum
 
-QUICK = EmulatorOptions(steps=800, width=32)
+QUICK = DensityOptions(layers=3, width=32, max_epochs=150, patience=10)
 
 
-def closed_form(u, w):
-    """Mean (N, F) and sd (N, F) of a heteroscedastic feature distribution."""
-    mean = np.sin(2 * u @ w / 3) + u[:, :1] ** 2
-    sd = (0.05 + 0.2 * u[:, 1:2]) * np.ones((1, w.shape[1]))
-    return mean, sd
+def closed_form_draws(u, rng):
+    """Draws (N, 3) of a closed-form feature distribution that no Gaussian holds: feature 0
+    bimodal (±1, the upper mode with probability u₀), feature 1 with a spread that changes
+    twentyfold with u₁, feature 2 skewed (log-normal) about a mean that follows u₀."""
+    mode = np.where(rng.uniform(size=len(u)) < u[:, 0], 1.0, -1.0)
+    f0 = mode + 0.1 * rng.normal(size=len(u))
+    f1 = np.sin(3 * u[:, 0]) + (0.02 + 0.4 * u[:, 1]) * rng.normal(size=len(u))
+    f2 = u[:, 0] + np.exp(0.5 * rng.normal(size=len(u)))
+    return np.c_[f0, f1, f2]
 
 
-def test_the_emulator_recovers_a_closed_form_mean_and_spread():
+def closed_form_log_density(u, y):
+    """The exact log density of :func:`closed_form_draws`."""
+
+    p0 = np.logaddexp(
+        np.log(u[:, 0]) + stats.norm(1, 0.1).logpdf(y[:, 0]),
+        np.log1p(-u[:, 0]) + stats.norm(-1, 0.1).logpdf(y[:, 0]),
+    )
+    p1 = stats.norm(np.sin(3 * u[:, 0]), 0.02 + 0.4 * u[:, 1]).logpdf(y[:, 1])
+    p2 = stats.lognorm(0.5).logpdf(y[:, 2] - u[:, 0])
+    return p0 + p1 + p2
+
+
+def moment_matched_gaussian(u, y):
+    """The log density of independent Gaussians with :func:`closed_form_draws`' exact means
+    and variances."""
+
+    mean = np.c_[2 * u[:, 0] - 1, np.sin(3 * u[:, 0]), u[:, 0] + np.exp(0.125)]
+    var = np.c_[
+        1 - (2 * u[:, 0] - 1) ** 2 + 0.01,
+        (0.02 + 0.4 * u[:, 1]) ** 2,
+        np.full(len(u), (np.exp(0.25) - 1) * np.exp(0.25)),
+    ]
+    return np.sum(stats.norm(mean, np.sqrt(var)).logpdf(y), axis=1)
+
+
+def test_the_flow_learns_a_closed_form_density_no_gaussian_holds():
     rng = np.random.default_rng(0)
-    w = rng.normal(size=(4, 12))
-    u = rng.uniform(size=(1500, 4))
-    mean, sd = closed_form(u, w)
-    y = mean + sd * rng.normal(size=mean.shape)
-    em, _ = fit_emulator(u, y, (0, 1, 2, 3), QUICK, np.random.SeedSequence(1))
-    ut = rng.uniform(size=(200, 4))
-    m_true, sd_true = closed_form(ut, w)
-    m, c = jax.vmap(em.predict)(jnp.asarray(ut))
-    err = (np.asarray(m) - m_true) / sd_true
-    ratio = np.sqrt(np.diagonal(np.asarray(c), axis1=1, axis2=2)) / sd_true
-    assert np.sqrt(np.mean(err**2)) < 0.5  # the mean to half its spread
-    assert 0.8 < np.median(ratio) < 1.3  # the spread itself
-    # the emulator's own error grows outside the design
-    inside = np.mean(jax.vmap(em.emulator_variance)(jnp.asarray(ut)))
-    outside = np.mean(jax.vmap(em.emulator_variance)(jnp.asarray(ut + 1.5)))
-    assert outside > 5 * inside
+    u = rng.uniform(0.05, 0.95, size=(4000, 2))
+    density, _ = fit_density(u, closed_form_draws(u, rng), (0, 1), QUICK, np.random.SeedSequence(1))
+    ut = rng.uniform(0.1, 0.9, size=(1000, 2))
+    yt = closed_form_draws(ut, rng)
+    learned = np.asarray(jax.vmap(density.log_prob)(jnp.asarray(yt), jnp.asarray(ut)))
+    exact = closed_form_log_density(ut, yt)
+    # the mean log-density ratio estimates KL(exact ‖ learned), in nats per draw
+    assert np.mean(exact - learned) < 0.3
+    # while the Gaussian with the exact mean and variance at each point falls far short
+    assert np.mean(exact - moment_matched_gaussian(ut, yt)) > 1.0
+    # the whitened residuals of fresh draws are standard normal
+    r = np.asarray(jax.vmap(density.residual)(jnp.asarray(yt), jnp.asarray(ut)))
+    assert 0.9 < np.sqrt(np.mean(r**2)) < 1.1
+    assert np.all(np.abs(r.mean(axis=0)) < 0.25)
 
 
-def test_emulator_training_is_deterministic_for_a_seed():
+def test_flow_training_is_deterministic_for_a_seed():
     rng = np.random.default_rng(3)
     u = rng.uniform(size=(200, 2))
     y = np.c_[u[:, 0], u[:, 1] ** 2] + 0.1 * rng.normal(size=(200, 2))
-    opts = EmulatorOptions(steps=50, width=8)
-    a, la = fit_emulator(u, y, (0, 1), opts, np.random.SeedSequence(7))
-    b, lb = fit_emulator(u, y, (0, 1), opts, np.random.SeedSequence(7))
-    np.testing.assert_array_equal(la, lb)
-    np.testing.assert_array_equal(a.predict(jnp.asarray(u[0]))[0], b.predict(jnp.asarray(u[0]))[0])
+    opts = DensityOptions(layers=2, width=8, max_epochs=5)
+    a, la = fit_density(u, y, (0, 1), opts, np.random.SeedSequence(7))
+    b, lb = fit_density(u, y, (0, 1), opts, np.random.SeedSequence(7))
+    assert la == lb
+    y0, u0 = jnp.asarray(y[0]), jnp.asarray(u[0])
+    np.testing.assert_array_equal(a.log_prob(y0, u0), b.log_prob(y0, u0))
 
 
 def linear_gaussian_likelihood(seed):
@@ -80,16 +109,10 @@ def linear_gaussian_likelihood(seed):
         return logv @ a.T + s * noise.normal(size=(u.shape[0], 8))
 
     u = rng.uniform(0.05, 0.95, size=(2000, 2))
-    em, _ = fit_emulator(
-        u,
-        simulate(u, rng),
-        (0, 1),
-        EmulatorOptions(steps=1500, width=32),
-        np.random.SeedSequence(seed),
-    )
+    density, _ = fit_density(u, simulate(u, rng), (0, 1), QUICK, np.random.SeedSequence(seed))
     truth_u = np.array([[0.45, 0.6]])
     data = simulate(truth_u, rng)
-    like = LearnedLikelihood((em,), jnp.asarray(data), specs)
+    like = LearnedLikelihood((density,), jnp.asarray(data), specs)
     # exact: the profile of log v0 is Gaussian with variance [(AᵀA)⁻¹]₀₀ s²
     sd_log = s * np.sqrt(np.linalg.inv(a.T @ a)[0, 0])
     return like, truth_u[0], sd_log

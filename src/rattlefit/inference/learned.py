@@ -18,6 +18,7 @@ from collections.abc import Callable, Sequence
 import jax.numpy as jnp
 import numpy as np
 
+from ..errors import RattlefitError
 from ..io.recording import Recording
 from ..likelihood import LearningOptions, learn_likelihood
 from ..likelihood.check import check_points
@@ -175,13 +176,16 @@ def learn_or_reuse(problem: Problem, options: FitOptions, seed, say) -> tuple[Le
     floor = band_floor(problem, options)
     if lk.reuse is not None:
         stored = read_learned(lk.reuse, problem)
+        if not all(np.allclose(d.floor, floor) for d in stored.likelihood.densities):
+            raise RattlefitError(
+                f"{lk.reuse}: /learned_likelihood: learned with another variance floor than "
+                "this fit's (noise.sigma_floor); learn anew"
+            )
         say(f"reusing the learned likelihood of this test point in {lk.reuse}")
-        stored = dataclasses.replace(stored, likelihood=stored.likelihood.with_floor(floor))
         return stored, {"reused": str(lk.reuse), "rounds": []}
     say(f"learning the likelihood from {learning.budget} simulations per recording")
-    like, design, rounds = learn_likelihood(problem, learning, seed=seed, progress=say)
-    like = like.with_floor(floor)
-    learned = Learned(like, design, test_point_key(problem), options.seed, learning.emulator)
+    like, design, rounds = learn_likelihood(problem, learning, seed=seed, floor=floor, progress=say)
+    learned = Learned(like, design, test_point_key(problem), options.seed, learning.density)
     return learned, {"rounds": [round_info(r) for r in rounds]}
 
 
@@ -234,10 +238,10 @@ def identify_learned(
         say("one more round of simulations where the reused likelihood misses …")
         more = dataclasses.replace(learning_options(options), rounds=1)
         start = (learned.likelihood, learned.design)
+        floor = band_floor(problem, options)
         like, design, rounds = learn_likelihood(
-            problem, more, seed=s_more, start=start, progress=say
+            problem, more, seed=s_more, start=start, floor=floor, progress=say
         )
-        like = like.with_floor(band_floor(problem, options))
         learned = dataclasses.replace(learned, likelihood=like, design=design)
         info["rounds"] += [round_info(r) for r in rounds]
         fit, checks = fit_and_check(problem, learned, options, s_check, say)

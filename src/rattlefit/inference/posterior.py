@@ -153,8 +153,8 @@ class LogPosterior:
 class LearnedLogPosterior(LogPosterior):
     """log p(z | d) on a learned likelihood
     (:class:`~rattlefit.likelihood.model.LearnedLikelihood`): the same priors and contract as
-    :class:`LogPosterior`, each recording's likelihood the Gaussian its emulator predicts
-    (``−½ (χ² + log det C)``). ``n_evaluations`` counts the points evaluated; nothing is
+    :class:`LogPosterior`, each recording's likelihood the density its feature flow learned
+    (``−½ (|r|² + log-volume term)``). ``n_evaluations`` counts the points evaluated; nothing is
     simulated."""
 
     def __init__(self, specs: Sequence[ParameterSpec], like: LearnedLikelihood):

@@ -1,17 +1,17 @@
 """The learned likelihood: the recordings' features given the parameters, learned from
-simulations (:mod:`.design`, :mod:`.emulator`, :mod:`.model`, :mod:`.learn`)."""
+simulations (:mod:`.design`, :mod:`.density`, :mod:`.model`, :mod:`.learn`)."""
 
-from .emulator import EmulatorOptions, FeatureEmulator, fit_emulator
+from .density import DensityOptions, FeatureDensity, fit_density
 from .learn import Design, LearningOptions, RoundRecord, learn_likelihood
 from .model import LearnedLikelihood
 
 __all__ = [
+    "DensityOptions",
     "Design",
-    "EmulatorOptions",
-    "FeatureEmulator",
+    "FeatureDensity",
     "LearnedLikelihood",
     "LearningOptions",
     "RoundRecord",
-    "fit_emulator",
+    "fit_density",
     "learn_likelihood",
 ]

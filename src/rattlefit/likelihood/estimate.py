@@ -6,7 +6,7 @@ deterministic and JAX differentiates it exactly, so the optimum is found by quas
 minimisation (optimistix's BFGS) and a parameter's 95 % interval is where its profile (the
 cost with the parameter held and the others re-minimised) stays within χ²₁'s 95 % quantile
 of the optimum's cost: no allowance for Monte Carlo noise is needed, because the cost has
-none, and the emulator's own error is already part of its covariance.
+none. The learned density's own error is measured by :mod:`rattlefit.likelihood.check`.
 """
 
 from __future__ import annotations

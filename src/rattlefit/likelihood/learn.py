@@ -2,12 +2,12 @@
 drawn from the current posterior.
 
 Round 0 simulates a scrambled Sobol' design over the prior box
-(:func:`~rattlefit.likelihood.design.prior_box`) and trains each recording's emulator on it.
+(:func:`~rattlefit.likelihood.design.prior_box`) and trains each recording's feature density on it.
 Each later round draws its design points from the current learned posterior, tempered
 (the likelihood raised to :attr:`LearningOptions.tempering`) so that its tails are covered,
-simulates them and retrains on everything simulated so far. Every random choice descends from
-one seed by :class:`numpy.random.SeedSequence` spawning, so the same seed gives the same
-design, simulations and networks.
+simulates them and retrains on everything simulated so far. Every random choice
+descends from one seed by :class:`numpy.random.SeedSequence` spawning, so the same seed gives
+the same design, simulations and networks.
 """
 
 from __future__ import annotations
@@ -22,8 +22,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..inference.problem import Problem
+from .density import DensityOptions, fit_density
 from .design import prior_box, simulate_design, sobol_design, unit_of_z, z_of_unit
-from .emulator import EmulatorOptions, fit_emulator
 from .model import LearnedLikelihood
 
 
@@ -35,7 +35,7 @@ class LearningOptions:
     ``rounds``: later rounds, each of ``per_round`` simulations per recording drawn from the
     current posterior with the likelihood raised to ``tempering`` (0.5 widens a Gaussian
     posterior by √2). ``walkers`` and ``steps``: the ensemble sampler that draws them (half the
-    steps discarded). ``emulator``: the networks.
+    steps discarded). ``density``: the flow and its training.
     """
 
     initial: int = 1024
@@ -44,7 +44,7 @@ class LearningOptions:
     tempering: float = 0.5
     walkers: int = 64
     steps: int = 400
-    emulator: EmulatorOptions = dataclasses.field(default_factory=EmulatorOptions)
+    density: DensityOptions = dataclasses.field(default_factory=DensityOptions)
 
     def __post_init__(self):
         if self.initial < 16 or self.per_round < 1 or self.rounds < 0:
@@ -61,13 +61,13 @@ class LearningOptions:
 @dataclasses.dataclass(frozen=True)
 class RoundRecord:
     """What one round cost and did: simulations per recording, wall times (s) of simulating
-    and training, simulations per second per core, and each emulator's final training loss."""
+    and training, simulations per second per core, and each density's best validation loss."""
 
     simulations: int
     simulate_seconds: float
     train_seconds: float
     per_second_per_core: float
-    losses: tuple[tuple[float, ...], ...]
+    losses: tuple[float, ...]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,16 +98,24 @@ def simulate_round(problem: Problem, u, seed: np.random.SeedSequence) -> np.ndar
 
 
 def train(
-    problem: Problem, design: Design, options: LearningOptions, seed: np.random.SeedSequence
-) -> tuple[LearnedLikelihood, tuple[tuple[float, ...], ...]]:
-    """The learned likelihood trained on ``design``, and each emulator's member losses."""
-    emulators, losses = [], []
+    problem: Problem,
+    design: Design,
+    options: LearningOptions,
+    seed: np.random.SeedSequence,
+    *,
+    floor=None,
+) -> tuple[LearnedLikelihood, tuple[float, ...]]:
+    """The learned likelihood trained on ``design`` with the variance ``floor`` (F,) added to
+    the features; and each density's best validation loss."""
+    densities, losses = [], []
     for r, child in enumerate(seed.spawn(problem.n_rec)):
         cols = recording_columns(problem, r)
-        em, loss = fit_emulator(design.u, design.features[r], cols, options.emulator, child)
-        emulators.append(em)
-        losses.append(tuple(float(x) for x in loss))
-    like = LearnedLikelihood(tuple(emulators), jnp.asarray(problem.data), problem.specs)
+        d, loss = fit_density(
+            design.u, design.features[r], cols, options.density, child, floor=floor
+        )
+        densities.append(d)
+        losses.append(loss)
+    like = LearnedLikelihood(tuple(densities), jnp.asarray(problem.data), problem.specs)
     return like, tuple(losses)
 
 
@@ -154,9 +162,11 @@ def learn_likelihood(
     *,
     seed: int | np.random.SeedSequence = 0,
     start: tuple[LearnedLikelihood, Design] | None = None,
+    floor=None,
     progress: Callable[[str], None] | None = None,
 ) -> tuple[LearnedLikelihood, Design, tuple[RoundRecord, ...]]:
-    """Learn the likelihood of ``problem``'s recordings in rounds (module docstring).
+    """Learn the likelihood of ``problem``'s recordings in rounds (module docstring), with
+    the variance ``floor`` (F,) added to every simulation's features.
 
     ``start`` (a likelihood and its design, e.g. a stored one of this test point) replaces
     round 0: only the posterior rounds run, on top of its design. Returns the learned
@@ -184,7 +194,7 @@ def learn_likelihood(
         feats = simulate_round(problem, u, s_sim)
         t1 = time.perf_counter()
         design = Design(u, feats) if design is None else design.extended(u, feats)
-        like, losses = train(problem, design, options, s_train)
+        like, losses = train(problem, design, options, s_train, floor=floor)
         t2 = time.perf_counter()
         rate = n * problem.n_rec / (t1 - t0) / cores
         records.append(RoundRecord(n, t1 - t0, t2 - t1, rate, losses))

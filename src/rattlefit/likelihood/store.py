@@ -1,7 +1,7 @@
 """Storing a learned likelihood, so that a re-fit, the posterior and other recordings of the
 same test point reuse it instead of learning it again.
 
-A file (HDF5, group ``/learned_likelihood``) holds the emulators' weights, the design they
+A file (HDF5, group ``/learned_likelihood``) holds the feature densities' weights, the design they
 were trained on (the design points and every simulation's features), the seed, and the
 **test-point key**: a hash of everything that defines the simulator's feature distribution
 (each recording's gear pair, operating point, drive, lubrication and encoders, the
@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import io
 import json
 import os
 from pathlib import Path
@@ -26,12 +27,12 @@ import numpy as np
 
 from ..errors import RattlefitError
 from ..inference.problem import Problem
-from .emulator import EmulatorOptions, FeatureEmulator, Member
+from .density import DensityOptions, FeatureDensity, Whitening, make_flow
 from .learn import Design
 from .model import LearnedLikelihood
 
 #: Format tag and version of a stored learned likelihood.
-FORMAT, VERSION = "rattlefit-learned-likelihood", 1
+FORMAT, VERSION = "rattlefit-learned-likelihood", 2
 GROUP = "learned_likelihood"
 
 
@@ -51,24 +52,24 @@ def test_point_key(problem: Problem) -> str:
     return h.hexdigest()[:24]
 
 
-def skeleton(n_in: int, n_out: int, columns, options: EmulatorOptions) -> FeatureEmulator:
-    """An emulator of the stored shape whose leaves are shape placeholders, to read into."""
+#: The flow's shape options kept with its weights.
+SHAPE = ("whitening_width", "whitening_depth", "layers", "width", "knots", "interval")
 
-    def make():
-        keys = jax.random.split(jax.random.key(0), options.members)
-        members = eqx.filter_vmap(
-            lambda k: Member(n_in, n_out, options.width, options.depth, k)
-        )(keys)
-        return FeatureEmulator(
-            members,
-            jnp.zeros(n_in),
-            jnp.ones(n_in),
-            jnp.zeros(n_out),
-            jnp.ones(n_out),
-            tuple(columns),
-        )
 
-    return eqx.filter_eval_shape(make)
+def skeleton(n_in: int, n_out: int, columns, options: DensityOptions) -> FeatureDensity:
+    """A density of the stored shape, to read the weights into."""
+    key = jax.random.key(0)
+    width, depth = options.whitening_width, options.whitening_depth
+    return FeatureDensity(
+        Whitening(n_in, n_out, width, depth, key),
+        make_flow(n_in, n_out, options, key),
+        jnp.zeros(n_in),
+        jnp.ones(n_in),
+        jnp.zeros(n_out),
+        jnp.ones(n_out),
+        jnp.zeros(n_out),
+        tuple(columns),
+    )
 
 
 def write_group(
@@ -78,28 +79,18 @@ def write_group(
     *,
     key: str,
     seed: int,
-    options: EmulatorOptions,
+    options: DensityOptions,
 ) -> None:
     """Write ``like`` with its ``design``, test-point ``key`` and ``seed`` into group ``g``."""
-    g.attrs.update(
-        format=FORMAT,
-        version=VERSION,
-        key=key,
-        seed=seed,
-        width=options.width,
-        depth=options.depth,
-        members=options.members,
-    )
+    g.attrs.update(format=FORMAT, version=VERSION, key=key, seed=seed)
+    g.attrs.update({name: getattr(options, name) for name in SHAPE})
     g.create_dataset("design_u", data=design.u)
     g.create_dataset("design_features", data=design.features)
-    if like.floor is not None:
-        g.create_dataset("floor", data=np.asarray(like.floor))
-    for r, em in enumerate(like.emulators):
-        e = g.create_group(f"emulator_{r}")
-        e.attrs["columns"] = np.asarray(em.columns)
-        arrays, _ = eqx.partition(em, eqx.is_array)
-        for k, leaf in enumerate(jax.tree_util.tree_leaves(arrays)):
-            e.create_dataset(f"leaf_{k}", data=np.asarray(leaf))
+    for r, density in enumerate(like.densities):
+        buffer = io.BytesIO()
+        eqx.tree_serialise_leaves(buffer, density)
+        d = g.create_dataset(f"density_{r}", data=np.frombuffer(buffer.getvalue(), np.uint8))
+        d.attrs["columns"] = np.asarray(density.columns)
 
 
 def write_learned(
@@ -109,7 +100,7 @@ def write_learned(
     *,
     key: str,
     seed: int,
-    options: EmulatorOptions,
+    options: DensityOptions,
 ) -> Path:
     """Write ``like`` (see :func:`write_group`) to the file ``path``, atomically; returns it."""
     path = Path(path)
@@ -123,13 +114,13 @@ def write_learned(
 @dataclasses.dataclass(frozen=True)
 class Learned:
     """A stored learned likelihood: the likelihood (on the problem it was read for), its
-    design, key, seed and network options."""
+    design, key, seed and flow options."""
 
     likelihood: LearnedLikelihood
     design: Design
     key: str
     seed: int
-    options: EmulatorOptions
+    options: DensityOptions
 
 
 def read_group(g: h5py.Group, problem: Problem, where: str) -> Learned:
@@ -147,24 +138,16 @@ def read_group(g: h5py.Group, problem: Problem, where: str) -> Learned:
             f"{where}@key: learned for another test point (gear pair, operating point, "
             "drive, priors or simulator options differ); learn anew"
         )
-    options = EmulatorOptions(
-        members=int(g.attrs["members"]), width=int(g.attrs["width"]), depth=int(g.attrs["depth"])
-    )
+    default = DensityOptions()
+    options = DensityOptions(**{n: type(getattr(default, n))(g.attrs[n]) for n in SHAPE})
     design = Design(np.asarray(g["design_u"]), np.asarray(g["design_features"]))
-    emulators = []
+    densities = []
     for r in range(problem.n_rec):
-        e = g[f"emulator_{r}"]
-        columns = tuple(int(c) for c in e.attrs["columns"])
+        d = g[f"density_{r}"]
+        columns = tuple(int(c) for c in d.attrs["columns"])
         shape = skeleton(len(columns), problem.data.shape[-1], columns, options)
-        arrays, rest = eqx.partition(
-            shape, lambda x: isinstance(x, jax.ShapeDtypeStruct) or eqx.is_array(x)
-        )
-        leaves, treedef = jax.tree_util.tree_flatten(arrays)
-        loaded = [jnp.asarray(e[f"leaf_{k}"][()]) for k in range(len(leaves))]
-        emulators.append(eqx.combine(jax.tree_util.tree_unflatten(treedef, loaded), rest))
-    like = LearnedLikelihood(tuple(emulators), jnp.asarray(problem.data), problem.specs)
-    if "floor" in g:
-        like = like.with_floor(np.asarray(g["floor"]))
+        densities.append(eqx.tree_deserialise_leaves(io.BytesIO(d[()].tobytes()), shape))
+    like = LearnedLikelihood(tuple(densities), jnp.asarray(problem.data), problem.specs)
     return Learned(like, design, key, int(g.attrs["seed"]), options)
 
 

@@ -44,8 +44,8 @@ def format_table(result: FitResult) -> str:
     per = ""
     if len(result.chi2_recordings) > 1:
         per = " (" + " + ".join(f"{c:.1f}" for c in result.chi2_recordings) + " by recording)"
-    search = "quasi-Newton" if result.likelihood.get("method") == "learned" else (
-        "Levenberg–Marquardt"
+    search = (
+        "quasi-Newton" if result.likelihood.get("method") == "learned" else ("Levenberg–Marquardt")
     )
     state = "converged" if result.success else "stopped at its step limit"
     lines.append(
