@@ -1,18 +1,20 @@
-"""Rewrite the README's results table from the result files in benchmarks/results/.
+"""Rewrite the results tables of the README and docs/performance.md from the result files in
+benchmarks/results/.
 
-Each ``benchmarks/results/*.json`` holds one benchmark or study: ``what`` it measures, a
-one-line ``summary`` of the latest figures (the table shows its first clause), the ``aim``
-and ``verdict``, and ``order`` (its row's place). This script renders them as a Markdown
-table and puts it between the README's markers
+Each ``benchmarks/results/*.json`` holds one benchmark: ``what`` it measures, a one-line
+``summary`` of the latest figures (the table shows its first clause), the ``aim`` and
+``verdict``, ``order`` (its row's place) and, for the few rows the README shows,
+``headline: true``. This script renders them as Markdown tables, every result in
+docs/performance.md and the headline ones in the README, each between the page's markers
 
     <!-- results:begin -->
     <!-- results:end -->
 
-replacing what was there. The README is written through a temporary file in its directory
-that is then renamed over it, so an interrupted run leaves the old README intact.
+replacing what was there. Each page is written through a temporary file in its directory that
+is then renamed over it, so an interrupted run leaves the old page intact.
 
-    python benchmarks/readme_table.py            # rewrite the table
-    python benchmarks/readme_table.py --check    # exit 1 if the table is stale
+    python benchmarks/readme_table.py            # rewrite the tables
+    python benchmarks/readme_table.py --check    # exit 1 if a table is stale
 
 Standard library only.
 """
@@ -29,6 +31,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 README = ROOT / "README.md"
+PERFORMANCE = ROOT / "docs" / "performance.md"
 BEGIN = "<!-- results:begin -->"
 END = "<!-- results:end -->"
 REQUIRED = ("what", "summary", "aim", "verdict", "commit", "platform")
@@ -108,31 +111,39 @@ def atomic_write(path: Path, text: str) -> None:
         raise
 
 
+def pages(readme: Path, performance: Path, docs) -> list[tuple[Path, str]]:
+    """Each page and its table: the headline results in the README, every one in
+    docs/performance.md."""
+    top = [(n, d) for n, d in docs if d.get("headline")]
+    return [(readme, render(top)), (performance, render(docs, "../benchmarks/results/"))]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--check", action="store_true", help="exit 1 if the table is stale")
+    parser.add_argument("--check", action="store_true", help="exit 1 if a table is stale")
     parser.add_argument("--readme", type=Path, default=README)
+    parser.add_argument("--performance", type=Path, default=PERFORMANCE)
     parser.add_argument("--results", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
 
+    stale = 0
     try:
-        text = args.readme.read_text(encoding="utf-8")
-        updated = replace_table(text, render(load_results(args.results)))
+        docs = load_results(args.results)
+        for page, table in pages(args.readme, args.performance, docs):
+            text = page.read_text(encoding="utf-8")
+            updated = replace_table(text, table)
+            if updated == text:
+                print(f"{page}: the results table is up to date")
+            elif args.check:
+                print(f"{page}: the results table is stale; run benchmarks/readme_table.py")
+                stale = 1
+            else:
+                atomic_write(page, updated)
+                print(f"rewrote the results table of {page}")
     except (OSError, ValueError) as exc:
         print(f"readme_table: {exc}", file=sys.stderr)
         return 2
-    if args.check:
-        if updated != text:
-            print(f"{args.readme}: the results table is stale; run benchmarks/readme_table.py")
-            return 1
-        print(f"{args.readme}: the results table is up to date")
-        return 0
-    if updated != text:
-        atomic_write(args.readme, updated)
-        print(f"rewrote the results table of {args.readme}")
-    else:
-        print(f"{args.readme}: the results table is already up to date")
-    return 0
+    return stale
 
 
 if __name__ == "__main__":
