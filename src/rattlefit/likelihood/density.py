@@ -42,7 +42,8 @@ from flowjax.train import fit_to_data
 class DensityOptions:
     """How the feature density is built and trained.
 
-    Whitening: ``whitening_width`` hidden units in each of ``whitening_depth`` tanh layers,
+    Whitening: trained when ``whitening`` (else the identity: the flow alone, for comparison);
+    ``whitening_width`` hidden units in each of ``whitening_depth`` tanh layers,
     ``whitening_steps`` full-batch AdamW steps from ``whitening_rate`` (cosine decay to 1/30)
     with decoupled ``weight_decay``.
     Flow: ``layers`` autoregressive layers with ``width`` hidden units (one hidden layer),
@@ -52,6 +53,7 @@ class DensityOptions:
     epoch kept).
     """
 
+    whitening: bool = True
     whitening_width: int = 48
     whitening_depth: int = 2
     whitening_steps: int = 1500
@@ -266,8 +268,12 @@ def fit_density(
 def train_whitening(xs, ys, options: DensityOptions, key) -> Whitening:
     """The :class:`Whitening` trained full-batch on standardised inputs ``xs`` (N, P) and
     features ``ys`` (N, F), in single precision (the data's own noise is far above its
-    rounding), returned in double."""
+    rounding), returned in double; the identity when ``options.whitening`` is off."""
     net = Whitening(xs.shape[1], ys.shape[1], options.whitening_width, options.whitening_depth, key)
+    if not options.whitening:
+        last = net.mlp.layers[-1]
+        zero = (jnp.zeros_like(last.weight), jnp.zeros_like(last.bias))
+        return eqx.tree_at(lambda n: (n.mlp.layers[-1].weight, n.mlp.layers[-1].bias), net, zero)
     net = cast(net, jnp.float32)
     net = whitening_steps(net, jnp.asarray(xs, jnp.float32), jnp.asarray(ys, jnp.float32), options)
     return cast(net, jnp.float64)
