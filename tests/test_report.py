@@ -1,6 +1,7 @@
 """The identification table: what a person reads first."""
 
 import base64
+import dataclasses
 import json
 import math
 import subprocess
@@ -64,6 +65,32 @@ def test_table_warns_only_about_a_poor_fit():
     text = format_table(bad)
     assert "warning: χ² is far above its 28 degrees of freedom" in text
     assert "√(χ²/dof) = 2.1" in text
+
+
+def test_the_table_shows_the_physics_first_and_a_measured_nuisance_as_measured():
+    res = _result(30.0, 28)
+    params = {
+        "backlash[0]": ParameterEstimate("backlash[0]", "m", 8e-4, 7.9e-4, 8.1e-4, False, "prior"),
+        "min_film": ParameterEstimate("min_film", "m", 2e-6, 5e-7, 8e-6, False, "prior"),
+        **res.parameters,
+        "squeeze_momentum": ParameterEstimate(
+            "squeeze_momentum", "N s", 1e-3, 5e-4, 2e-3, False, "interval"
+        ),
+    }
+    text = format_table(dataclasses.replace(res, parameters=params))
+    order = [line.split()[0] for line in text.splitlines()[2:8]]
+    assert order == [
+        "a",
+        "drag_torque",
+        "viscosity",
+        "squeeze_momentum",
+        "nuisances:",
+        "backlash[0]",
+    ]
+    backlash = next(line for line in text.splitlines() if line.startswith("backlash[0]"))
+    film = next(line for line in text.splitlines() if line.startswith("min_film"))
+    assert "as measured" in backlash and "prior-dominated" not in backlash  # ×1.03
+    assert "prior-dominated" in film  # ×16: the data do not narrow it
 
 
 def test_a_joint_fit_names_the_recording_the_model_does_not_explain():

@@ -4,7 +4,7 @@ HTML report's parameter table; and the numbers as the table shows them."""
 from __future__ import annotations
 
 from ..inference.advice import base_name, film_lubrication
-from ..inference.result import identified_ratio
+from ..inference.result import IDENTIFIED_RATIO, identified_ratio
 from .tables import DISPLAY
 
 #: What each fitted parameter is, in words.
@@ -51,6 +51,8 @@ def verdict_word(p: dict) -> str:
     """One or two words for the table's status column."""
     if p["identified"]:
         return "identified"
+    if p["bound"] == "prior" and p["upper"] <= IDENTIFIED_RATIO * p["lower"]:
+        return "as measured"
     return {
         "lower": "lower bound only",
         "upper": "upper bound only",

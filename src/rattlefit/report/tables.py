@@ -14,11 +14,26 @@ from ..inference.result import FitResult, identified_ratio
 DISPLAY = {"m": (1e3, "mm"), "N m": (1.0, "N m"), "Pa s": (1.0, "Pa s"), "1": (1.0, "")}
 
 
+#: The parameters the table shows first: the films, the drag torque, the viscosity and the
+#: squeeze momenta; the nuisances follow in a block of their own.
+PHYSICAL = ("a", "drag_torque", "viscosity", "squeeze_momentum")
+
+
+def is_physical(name: str) -> bool:
+    """Whether ``name`` is one of the :data:`PHYSICAL` parameters (a film ``a[...]`` too)."""
+    return name.split("[")[0] in PHYSICAL
+
+
 def format_table(result: FitResult) -> str:
-    """The parameters as a readable table (estimate, 95 % interval, unit, identified)."""
+    """The parameters as a readable table (estimate, 95 % interval, unit, identified): the
+    physical parameters first, then the nuisances."""
     rows = [("parameter", "estimate", "95 % interval", "unit", "identified")]
     advice = []
-    for name, p in result.parameters.items():
+    names = sorted(result.parameters, key=lambda n: not is_physical(n))
+    for k, name in enumerate(names):
+        p = result.parameters[name]
+        if k and not is_physical(name) and is_physical(names[k - 1]):
+            rows.append(("nuisances:", "", "", "", ""))
         mult, unit = DISPLAY.get(p.unit, (1.0, p.unit))
         est = f"{p.estimate * mult:.4g}"
         ci = f"[{p.lower * mult:.4g}, {p.upper * mult:.4g}]"
@@ -31,6 +46,8 @@ def format_table(result: FitResult) -> str:
         elif p.bound == "interval":
             ratio = identified_ratio(name)
             ident = f"no: interval too wide (×{p.upper / p.lower:.2f} > ×{ratio:.3g})"
+        elif p.bound == "prior" and p.upper / p.lower <= identified_ratio(name):
+            ident = "as measured (its prior)"
         elif p.bound == "prior":
             ident = "no: prior-dominated"
         else:
@@ -41,6 +58,7 @@ def format_table(result: FitResult) -> str:
     widths = [max(len(r[i]) for r in rows) for i in range(5)]
     lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
+    lines = [line.rstrip() for line in lines]
     per = ""
     if len(result.chi2_recordings) > 1:
         per = " (" + " + ".join(f"{c:.1f}" for c in result.chi2_recordings) + " by recording)"
@@ -89,7 +107,7 @@ def _profile_line(profile: dict) -> str:
     if profile.get("likelihood") == "learned":
         return (
             f"95 % intervals: where the profile cost is within {profile['threshold']:.2f} of the "
-            "optimum's (χ²₁; the learned likelihood is smooth, with its own error in its spread)"
+            "optimum's (χ²₁; the learned likelihood is smooth and has no Monte Carlo noise)"
         )
     sd, source = profile["monte_carlo_sd"], "the Monte Carlo noise of a cost difference"
     rough = profile.get("roughness_sd", profile.get("roughness_rms", 0.0))
@@ -128,6 +146,7 @@ def format_posterior(post: Posterior) -> str:
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
+    lines = [line.rstrip() for line in lines]
     steps, walkers = post.chain.shape[:2]
     lines.append(
         f"{walkers} walkers × {steps} steps (first {post.discard} discarded); acceptance "
@@ -282,4 +301,5 @@ def format_suggestions(plan: dict) -> str:
     widths = [max(len(row[i]) for row in table) for i in range(len(table[0]))]
     lines = ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)) for row in table]
     lines.insert(1, "  ".join("-" * w for w in widths))
+    lines = [line.rstrip() for line in lines]
     return "\n".join([*lines, suggestion_note(plan)])
