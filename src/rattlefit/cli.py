@@ -200,6 +200,29 @@ def info(file: Path, as_json: bool) -> None:
     click.echo(json.dumps(summary, indent=2) if as_json else format_summary(summary))
 
 
+@main.command("import")
+@click.argument("source", type=click.Path(dir_okay=False, path_type=Path))
+@click.option(
+    "--map",
+    "channel_map",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="TOML channel map: the encoder channels, counts per revolution, sample rate, gear "
+    "pair, operating point and oil (docs/recording-format.md).",
+)
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path))
+@_clean_errors
+def import_(source: Path, channel_map: Path, output: Path) -> None:
+    """Turn a rig file (LabView TDMS or CSV) into a recording (HDF5 format v1)."""
+    from .io.recording import inspect_warnings
+    from .io.rig_files import import_recording
+
+    rec = import_recording(source, channel_map, output)
+    click.echo(f"wrote {output}: {rec.n_samples} samples at {rec.sample_rate_hz:g} Hz", err=True)
+    for warning in inspect_warnings(rec):
+        click.echo(f"note: {warning}", err=True)
+
+
 @main.command()
 @click.option("--pair", type=click.Choice(["I", "II"]), help="Gear pair of the paper's Table 2.")
 @click.option("--center-distance", type=float, default=65.0, show_default=True, help="mm")
