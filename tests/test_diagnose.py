@@ -565,7 +565,7 @@ def test_a_drive_cycle_miss_is_where_a_statistic_passes_the_family_wise_threshol
     # 1 recording × 3 statistics × 16 bins = 48 statistics: Bonferroni at 0.01, two-sided
     from scipy import stats as st
 
-    from rattlefit.diagnosis.cycle import CycleGap
+    from rattlefit.diagnosis.cycle_gap import CycleGap
 
     threshold = float(st.norm.isf(0.01 / (2 * 48)))
     model, sd = np.zeros((1, 3, 16)), np.full((1, 3, 16), 0.1)

@@ -49,8 +49,7 @@ from .reproducibility import platform_info  # noqa: E402
 from .simulation.parallel import use_cpu_cores  # noqa: E402
 from .simulation.solve import Solution, simulate, simulate_batch  # noqa: E402
 from .simulation.synthetic import synthesize  # noqa: E402
-
-__version__ = "0.1.0"
+from .version import __version__ as __version__  # noqa: E402
 
 __all__ = [
     "DiagnoseOptions",

@@ -3,17 +3,14 @@
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import stats
 
 from ..inference.result import FitResult
 from ..physics.effects import mechanism_of
+from .cycle_gap import CycleGap
 from .evidence import FOUND_ONLY, Finding
-
-if TYPE_CHECKING:
-    from .cycle import CycleGap
 
 #: A band counts as missed when its standardised residual exceeds this (in σ).
 MISSED_Z = 3.0

@@ -61,7 +61,7 @@ def predictive_pick(n_kept: int, n_draws: int, seed: int) -> np.ndarray:
 
 
 def _attrs(post: Posterior, recordings: Sequence[Recording] | None) -> dict:
-    from .. import __version__
+    from ..version import __version__
 
     paths = (
         list(post.recordings)

@@ -391,7 +391,7 @@ def html_report(
     a document that is not what it should be, a recording that cannot be found or read, and
     a posterior or diagnosis of other recordings than the fit's.
     """
-    from .. import __version__
+    from ..version import __version__
 
     check(fit, "fit")
     paths = [str(p) for p in fit["fit"]["recordings"]]

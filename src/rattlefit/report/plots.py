@@ -229,7 +229,7 @@ CYCLE_LABELS = {
 def draw_drive_cycle(cycle: dict, names: Sequence[str]):
     """A figure of each recording's drive-cycle statistics (a row each, a panel per
     statistic) against the model without effects, its mean ± 2 spreads, the misses circled;
-    ``cycle`` is :meth:`~rattlefit.diagnosis.cycle.CycleGap.as_dict`."""
+    ``cycle`` is :meth:`~rattlefit.diagnosis.cycle_gap.CycleGap.as_dict`."""
     phases = np.asarray(cycle["phases"], dtype=float)
     measured, model, sd = (np.asarray(cycle[k], dtype=float) for k in ("measured", "model", "sd"))
     n_rec, n_stat = measured.shape[:2]
