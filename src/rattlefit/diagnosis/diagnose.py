@@ -208,17 +208,16 @@ def trial_of(
 ) -> Trial:
     """The :class:`Trial` of ``baseline``: its problem with the candidates ``names`` (default:
     every effect of ``options``), noise model, fresh release states for the final comparison
-    (seeded from the fit's seed + 1) and validation states (seed + 2; the fit's covariance
-    count)."""
+    and validation states (the fit's covariance count), from two children spawned from the
+    fit's seed."""
     base = baseline.problem_for(recordings)
     problem, candidates = candidate_problem(base, options.effects if names is None else names)
     fit_options = baseline.options
     n_validation = fit_options.n_covariance_realisations
     n_final = options.n_final or FINAL_FACTOR * n_validation
-    y0 = release_states(base, baseline.z, n_final, np.random.default_rng(fit_options.seed + 1))
-    validation = release_states(
-        base, baseline.z, n_validation, np.random.default_rng(fit_options.seed + 2)
-    )
+    s_final, s_validation = np.random.SeedSequence(fit_options.seed).spawn(2)
+    y0 = release_states(base, baseline.z, n_final, np.random.default_rng(s_final))
+    validation = release_states(base, baseline.z, n_validation, np.random.default_rng(s_validation))
     dry = dry_films(base, recordings)
     nuisances = [i for i, sp in enumerate(base.specs) if sp.log_sd is not None]
     return Trial(
