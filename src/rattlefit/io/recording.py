@@ -51,6 +51,7 @@ __all__ = [
     "max_count_jump",
     "read_recording",
     "read_truth",
+    "recording_of",
     "write_recording",
 ]
 
@@ -346,20 +347,29 @@ def read_recording(path: str | os.PathLike[str]) -> Recording:
         values = validate_attrs(groups, file)
         schema = SCHEMAS[values["/"]["format_version"]]
         counts = {s.name: _read_counts(f, s, file) for s in schema if s.kind == "counts"}
+    rec = recording_of(values, counts["primary"], counts["secondary"], file)
+    _check_consistency(rec, file)
+    return rec
+
+
+def recording_of(
+    values: Mapping[str, Mapping[str, Any]], primary, secondary, path: str
+) -> Recording:
+    """The :class:`Recording` of validated attribute ``values`` (``{group path: {name:
+    value}}``, as :func:`~rattlefit.io.schema.validate_attrs` returns them) and the two
+    encoders' counts (N,), read from ``path``."""
     enc = values["/encoders"]
-    rec = Recording(
-        primary=counts["primary"],
-        secondary=counts["secondary"],
+    return Recording(
+        primary=primary,
+        secondary=secondary,
         sample_rate_hz=enc["sample_rate_hz"],
         counts_per_rev=enc["counts_per_rev"],
         gear_pair=GearPairSpec(**values["/gear_pair"]),
         operating=OperatingPoint(**values["/operating"]),
         oil=OilSpec(**values["/oil"]),
         title=values["/"].get("title", ""),
-        path=file,
+        path=path,
     )
-    _check_consistency(rec, file)
-    return rec
 
 
 def read_truth(path: str | os.PathLike[str]) -> dict[str, str | int | float] | None:

@@ -38,14 +38,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import RecordingError
-from .recording import (
-    GearPairSpec,
-    OilSpec,
-    OperatingPoint,
-    Recording,
-    check_recording,
-    write_recording,
-)
+from .recording import Recording, check_recording, recording_of, write_recording
 from .schema import FORMAT_NAME, FORMAT_VERSION, validate_attrs
 
 #: Format tag and version of a channel map.
@@ -186,17 +179,8 @@ def import_recording(
     }
     groups.update({f"/{g}": doc[g] for g in GROUPS})
     values = validate_attrs(groups, map_file)
-    rec = Recording(
-        primary=as_counts(primary, source, names[0]),
-        secondary=as_counts(secondary, source, names[1]),
-        sample_rate_hz=values["/encoders"]["sample_rate_hz"],
-        counts_per_rev=values["/encoders"]["counts_per_rev"],
-        gear_pair=GearPairSpec(**values["/gear_pair"]),
-        operating=OperatingPoint(**values["/operating"]),
-        oil=OilSpec(**values["/oil"]),
-        title=values["/"].get("title", ""),
-        path=source,
-    )
+    primary = as_counts(primary, source, names[0])
+    rec = recording_of(values, primary, as_counts(secondary, source, names[1]), source)
     check_recording(rec, source)
     write_recording(rec, output, overwrite=overwrite)
     return dataclasses.replace(rec, path=os.fspath(output))
