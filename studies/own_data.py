@@ -2,7 +2,11 @@
 bundled boundary file with its oil-jet companion, and a three-distance backlash sweep) at
 several fit seeds, and any further files given.
 
-    python studies/own_data.py [--seeds 0 1 2] [--json studies/results/own_data.json]
+    python studies/own_data.py [--seeds 0 1 2] [--fits companion sweep] [--keep]
+                               [--json studies/results/own_data.json]
+
+``--keep`` keeps the result file's rows of the fits and seeds this run does not redo (each
+row records the commit it ran at).
 
 For each fit and seed: the 95 % intervals of the drag torque, each film half-length and the
 viscosity against the truth, χ² on its degrees of freedom and its p-value, the learned
@@ -12,6 +16,7 @@ likelihood's check, and the wall time. The aim: every interval holds its truth, 
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from pathlib import Path
 
@@ -79,16 +84,29 @@ def row(name: str, result, truths: dict, wall: float, seed: int) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument(
+        "--fits", nargs="+", choices=["companion", "sweep"], default=["companion", "sweep"]
+    )
+    ap.add_argument("--keep", action="store_true", help="keep the other rows of the result file")
     ap.add_argument("--json", default=str(ROOT / "studies" / "results" / "own_data.json"))
     args = ap.parse_args()
     devices = rf.use_cpu_cores()
-    cases = {"boundary + oil-jet companion": companion(), "backlash sweep": sweep()}
+    makers = {
+        "companion": ("boundary + oil-jet companion", companion),
+        "sweep": ("backlash sweep", sweep),
+    }
+    cases = {makers[f][0]: makers[f][1]() for f in args.fits}
+    redo = {(name, seed) for name in cases for seed in args.seeds}
     rows = []
+    if args.keep and Path(args.json).exists():
+        old = json.loads(Path(args.json).read_text())["rows"]
+        rows = [r for r in old if (r["fit"], r["seed"]) not in redo]
     for name, (recs, truths) in cases.items():
         for seed in args.seeds:
             t0 = time.perf_counter()
             res = rf.identify(recs, rf.FitOptions(seed=seed, likelihood="learned"))
             r = row(name, res, truths, time.perf_counter() - t0, seed)
+            r["commit"] = head_commit()
             rows.append(r)
             marks = " ".join(
                 f"{k}:{'IN' if v['holds'] else 'OUT'}" for k, v in r["parameters"].items()
@@ -108,7 +126,11 @@ def write(args, rows: list, devices: int) -> None:
     doc = {
         "what": "the learned likelihood on rattlefit's own data: notebook 2's joint fits at "
         "several fit seeds",
-        "command": "python studies/own_data.py --seeds " + " ".join(map(str, args.seeds)),
+        "command": "python studies/own_data.py --seeds "
+        + " ".join(map(str, args.seeds))
+        + " --fits "
+        + " ".join(args.fits)
+        + (" --keep" if args.keep else ""),
         "commit": commit,
         "date": time.strftime("%Y-%m-%d"),
         "platform": rf.platform_info(),

@@ -60,7 +60,7 @@ def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
         stack.append(u)
         for v in sorted(graph[u]):
             if state.get(v) == 1:
-                return stack[stack.index(v) :] + [v]
+                return [*stack[stack.index(v) :], v]
             if v not in state and (cycle := visit(v)):
                 return cycle
         stack.pop()
