@@ -202,8 +202,8 @@ def test_dry_flanks_are_not_given_a_film():
 
 @pytest.mark.slow  # eight fits: two fit seeds × (three singles and the joint)
 def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque_on_average():
-    # Issue 3: "a joint fit of a backlash sweep must tighten the intervals compared with the
-    # single recordings". The paper's sweep (Figs. 10–12): pair II in boundary lubrication,
+    # A joint fit of a backlash sweep must tighten the intervals compared with the single
+    # recordings. The paper's sweep (Figs. 10–12): pair II in boundary lubrication,
     # 10 % at 8 Hz, at 65.0, 65.4 and 66.0 mm. The backlash changes the rattle, not a, T_b or
     # μ, so fitting the recordings together must narrow what they share.
     #
