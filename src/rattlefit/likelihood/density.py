@@ -175,23 +175,29 @@ class FeatureDensity(eqx.Module):
         w, log_s = self.whitening.whiten((y - self.y_shift) / self.y_scale, x)
         return w, x, -log_s - jnp.sum(jnp.log(self.y_scale))
 
+    def residual_and_log_jacobian(self, y, u):
+        """The whitened residual r (F,) of features ``y`` and the log Jacobian of ``y → r``,
+        from one pass through both stages."""
+        w, x, log_jac = self.whitened(y, u)
+        r, log_det = self.flow.bijection.inverse_and_log_det(w, condition=x)
+        return r, log_jac + log_det
+
     def log_prob(self, y, u):
         """log p(y | u) of features ``y`` (F,)."""
-        w, x, log_jac = self.whitened(y, u)
-        return self.flow.log_prob(w, condition=x) + log_jac
+        r, log_jac = self.residual_and_log_jacobian(y, u)
+        return self.flow.base_dist.log_prob(r) + log_jac
 
     def residual(self, y, u):
         """The whitened residual r (F,) of features ``y``: standard normal under the model."""
-        w, x, _ = self.whitened(y, u)
-        return self.flow.bijection.inverse(w, condition=x)
+        return self.residual_and_log_jacobian(y, u)[0]
 
     def chi2_terms(self, y, u):
         """``|r|²`` and the rest of ``−2 log p(y | u) − F log 2π`` (the log-volume term,
         the Gaussian's ``log det C``)."""
-        r = self.residual(y, u)
+        r, log_jac = self.residual_and_log_jacobian(y, u)
         chi2 = jnp.sum(r**2)
-        rest = -2 * self.log_prob(y, u) - chi2 - r.shape[0] * math.log(2 * math.pi)
-        return chi2, rest
+        log_p = self.flow.base_dist.log_prob(r) + log_jac
+        return chi2, -2 * log_p - chi2 - r.shape[0] * math.log(2 * math.pi)
 
     def sample(self, key, u, n: int):
         """``n`` draws (n, F) of the features at ``u``."""
