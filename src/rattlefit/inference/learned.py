@@ -25,6 +25,7 @@ from ..likelihood.check import check_points
 from ..likelihood.estimate import CHI2_95, LearnedFit, LogMomentum, fit_learned, profile_derived
 from ..likelihood.learn import best_points
 from ..likelihood.store import Learned, read_learned, test_point_key
+from ..quantities import FILM, base_name
 from ..reproducibility import platform_info
 from ..util import stamped
 from .group import flanks, group_films, group_spec
@@ -48,7 +49,7 @@ def checked_points(problem: Problem, fit: LearnedFit) -> dict[str, np.ndarray]:
     points = {"optimum": fit.optimum.z}
     for i, prof in fit.profiles.items():
         name = problem.specs[i].name
-        if name != "drag_torque" and not name.startswith("a"):
+        if name != "drag_torque" and base_name(name) != FILM:
             continue
         for end, zi in (("lower", prof.lower), ("upper", prof.upper)):
             k = int(np.argmin(np.abs(prof.z - zi)))
@@ -215,6 +216,28 @@ def fit_and_check(problem: Problem, learned: Learned, options: FitOptions, seed,
     return fit, checks
 
 
+#: Rounds of simulations added, at most, where the check finds the learned likelihood missing
+#: the simulator (each followed by a new fit and check).
+REFINEMENTS = 2
+
+
+def refine(problem: Problem, learned: Learned, options: FitOptions, seeds, say):
+    """``learned`` with one more posterior round of simulations on top of its design, and
+    that round's record."""
+    more = dataclasses.replace(learning_options(options), rounds=1)
+    like, design, rounds = learn_likelihood(
+        problem,
+        more,
+        seed=next(seeds),
+        start=(learned.likelihood, learned.design),
+        floor=band_floor(problem, options),
+        progress=say,
+    )
+    return dataclasses.replace(learned, likelihood=like, design=design), [
+        round_info(r) for r in rounds
+    ]
+
+
 def identify_learned(
     recordings: Sequence[Recording],
     options: FitOptions,
@@ -222,28 +245,26 @@ def identify_learned(
     progress: Callable[[str], None] | None = None,
 ) -> FitResult:
     """:func:`~rattlefit.inference.identify.identify` on the learned likelihood (module
-    docstring). Every random draw descends from ``options.seed``. A reused likelihood
-    (``options.likelihood.reuse``) whose check fails at this recording's optimum or interval
-    ends gets one more round of simulations there, and the fit is repeated."""
+    docstring). Every random draw descends from ``options.seed``. Where the check fails at the
+    optimum or an interval end, the likelihood (learned here or reused) gets one more round of
+    simulations drawn from its posterior and the fit is repeated, up to :data:`REFINEMENTS`
+    times."""
     t_start = time.perf_counter()
     say = stamped(progress, t_start)
     platform = platform_info()
     problem, rigs, _ = problem_from(recordings, options)
     say(f"{len(rigs)} recording(s), {len(problem.specs)} parameters (seed {options.seed})")
     s_learn, s_check, s_more = np.random.SeedSequence(options.seed).spawn(3)
+    s_more = iter(s_more.spawn(REFINEMENTS))
     learned, info = learn_or_reuse(problem, options, s_learn, say)
     fit, checks = fit_and_check(problem, learned, options, s_check, say)
     lubrications = [r.recording.operating.lubrication for r in rigs]
-    if "reused" in info and not all(c.passed for c in checks):
-        say("one more round of simulations where the reused likelihood misses …")
-        more = dataclasses.replace(learning_options(options), rounds=1)
-        start = (learned.likelihood, learned.design)
-        floor = band_floor(problem, options)
-        like, design, rounds = learn_likelihood(
-            problem, more, seed=s_more, start=start, floor=floor, progress=say
-        )
-        learned = dataclasses.replace(learned, likelihood=like, design=design)
-        info["rounds"] += [round_info(r) for r in rounds]
+    for _ in range(REFINEMENTS):
+        if all(c.passed for c in checks):
+            break
+        say("one more round of simulations where the learned likelihood misses …")
+        learned, rounds = refine(problem, learned, options, s_more, say)
+        info["rounds"] += rounds
         fit, checks = fit_and_check(problem, learned, options, s_check, say)
     info = {
         "method": "learned",

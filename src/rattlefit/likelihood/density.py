@@ -15,7 +15,9 @@ learned:
    training stops early on held-out simulations, so where the design is thin it stays near
    the identity and the density near the Gaussian.
 
-Both are trained by maximising the likelihood of single simulations, the whitening first.
+Both are trained by maximising the likelihood of single simulations, the whitening first, with
+gradients summed in an order that does not depend on the thread count
+(:mod:`rattlefit.likelihood.training`).
 ``|r|²`` is χ² on F degrees of freedom where the model holds. A variance ``floor`` (F,) is
 added to the training features as Gaussian noise, so the density is that of a simulation plus
 that noise: the floor of what any recording can be compared with, whatever the simulator's own
@@ -35,7 +37,8 @@ import optax
 from flowjax.bijections import RationalQuadraticSpline
 from flowjax.distributions import Normal
 from flowjax.flows import masked_autoregressive_flow
-from flowjax.train import fit_to_data
+
+from .training import mean_value_and_grad, pairwise_mean, pairwise_sum, train_flow
 
 
 @dataclasses.dataclass(frozen=True)
@@ -116,11 +119,11 @@ class Whitening(eqx.Module):
         mean, log_scale = self(x)
         return mean + jnp.exp(log_scale) * (self.factor() @ w)
 
-    def nll(self, xs, ys):
-        """Mean negative log-likelihood of standardised features ``ys`` (N, F) at ``xs``
-        (N, P), less its constant."""
-        w, log_s = jax.vmap(self.whiten)(ys, xs)
-        return jnp.mean(0.5 * jnp.sum(w**2, axis=1) + log_s)
+    def nll(self, x, y):
+        """The negative log-likelihood of standardised features ``y`` (F,) at ``x`` (P,),
+        less its constant."""
+        w, log_s = self.whiten(y, x)
+        return 0.5 * jnp.sum(w**2) + log_s
 
 
 def make_flow(n_in: int, n_out: int, options: DensityOptions, key):
@@ -210,7 +213,9 @@ class FeatureDensity(eqx.Module):
         """The features' mean (F,) and covariance (F, F) at ``u`` from ``n`` draws (a fixed
         key: deterministic)."""
         draws = self.sample(jax.random.key(seed), u, n)
-        return jnp.mean(draws, axis=0), jnp.cov(draws, rowvar=False)
+        mean = pairwise_mean(draws)
+        centred = draws - mean
+        return mean, pairwise_sum(centred[:, :, None] * centred[:, None, :]) / (n - 1)
 
 
 def standardisation(x, y):
@@ -250,16 +255,16 @@ def fit_density(
     ys = (y - shifts[2]) / shifts[3]
     whitening = train_whitening(xs, ys, options, key_of(s_whiten))
     w, _ = jax.vmap(whitening.whiten)(jnp.asarray(ys), jnp.asarray(xs))
-    flow, losses = fit_to_data(
-        key_of(s_train),
+    flow, losses = train_flow(
         make_flow(xs.shape[1], ys.shape[1], options, key_of(s_flow)),
-        (w, jnp.asarray(xs)),
+        w,
+        xs,
+        np.random.default_rng(s_train),
         learning_rate=options.learning_rate,
+        batch_size=options.batch_size,
         max_epochs=options.max_epochs,
-        max_patience=options.patience,
-        batch_size=min(options.batch_size, len(ys)),
-        val_prop=options.validation,
-        show_progress=False,
+        patience=options.patience,
+        validation=options.validation,
     )
     density = FeatureDensity(
         whitening,
@@ -268,7 +273,7 @@ def fit_density(
         jnp.asarray(floor),
         tuple(int(c) for c in columns),
     )
-    return density, float(min(losses["val"]))
+    return density, float(min(losses))
 
 
 def train_whitening(xs, ys, options: DensityOptions, key) -> Whitening:
@@ -300,7 +305,9 @@ def whitening_steps(net: Whitening, xs, ys, options: DensityOptions) -> Whitenin
 
     def step(carry, _):
         params, state = carry
-        grads = jax.grad(lambda p: eqx.combine(p, static).nll(xs, ys))(params)
+        _, grads = mean_value_and_grad(
+            lambda p, x, y: eqx.combine(p, static).nll(x, y), params, xs, ys
+        )
         updates, state = opt.update(grads, state, params)
         return (optax.apply_updates(params, updates), state), None
 
