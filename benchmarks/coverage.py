@@ -120,13 +120,17 @@ def print_summary(rows: list[dict]) -> None:
     """Coverage over every case, how often ``a`` was identified and within 20 %, and the
     coverage of the cases not flagged as a poor fit."""
     total = sum(3 for _ in rows)
-    covered = sum(r[k]["covered"] for r in rows for k in ("a", "drag_torque", "viscosity"))
+    covered = sum(
+        r[k]["covered"] for r in rows for k in ("film_half_length", "drag_torque", "viscosity")
+    )
     print(f"coverage: {covered}/{total} = {covered / total:.0%} (aim ≥ 90 %)")
     within = [r["a_within_20pct"] for r in rows if r["a_within_20pct"] is not None]
     print(f"a identified in {len(within)}/{len(rows)} cases; within 20 % in {sum(within)}")
     flagged = [r for r in rows if r["poor_fit"]]
     unflagged = [r for r in rows if not r["poor_fit"]]
-    hit = sum(r[k]["covered"] for r in unflagged for k in ("a", "drag_torque", "viscosity"))
+    hit = sum(
+        r[k]["covered"] for r in unflagged for k in ("film_half_length", "drag_torque", "viscosity")
+    )
     print(
         f"{len(flagged)} case(s) flagged as a poor fit; coverage of the others: "
         f"{hit}/{3 * len(unflagged)}"
@@ -153,7 +157,7 @@ def main() -> None:
         if args.only and n + 1 not in args.only:
             continue
         recs = [synthesize(g, op, params, seed=seed)[0]]
-        film = "a"
+        film = "film_half_length"
         if args.companion:
             if lub == args.companion:
                 print(f"[{n + 1}/{len(picks)}] pair {pair}, {lub}: skipped (the companion's)")
@@ -169,7 +173,7 @@ def main() -> None:
             if args.quiet
             else lambda msg, n=n: print(f"  [{n + 1}] {msg}", flush=True),
         )
-        truth = {"a": a, "drag_torque": DRAG[pair], "viscosity": mu}
+        truth = {"film_half_length": a, "drag_torque": DRAG[pair], "viscosity": mu}
         row = {
             "case": f"pair {pair}, {lub}, {cd} mm, {pct} %, {f:g} Hz",
             "seed": seed,
@@ -179,11 +183,13 @@ def main() -> None:
             "poor_fit": res.poor_fit,
         }
         for name, value in truth.items():
-            row[name] = interval_row(res.parameters[film if name == "a" else name], value)
+            row[name] = interval_row(
+                res.parameters[film if name == "film_half_length" else name], value
+            )
         if args.companion:
             c = interval_row(res.parameters[film_c], a_c)
             row["a_companion"] = {k: c[k] for k in ("truth", "lower", "upper", "covered")}
-        a_est = row["a"]
+        a_est = row["film_half_length"]
         row["a_within_20pct"] = (
             None if not a_est["identified"] or a == 0 else abs(a_est["estimate"] / a - 1) <= 0.2
         )

@@ -35,7 +35,7 @@ from rattlefit.inference.problem import build_problem
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.simulation.synthetic import synthesize
 
-TRUTH = {"a": 0.085e-3, "drag_torque": 0.025, "viscosity": 0.4942}
+TRUTH = {"film_half_length": 0.085e-3, "drag_torque": 0.025, "viscosity": 0.4942}
 
 
 def main() -> None:
@@ -48,7 +48,9 @@ def main() -> None:
     print(f"{rf.use_cpu_cores()} JAX device(s); seed {args.seed}", flush=True)
     op = OperatingPoint("boundary", 20.0, 52.36, 5.236, 8.0)
     g = rf.table2_pair("II", center_distance_mm=args.center_distance)
-    truth = rf.RattleParams(TRUTH["a"], TRUTH["drag_torque"], TRUTH["viscosity"], g.backlash)
+    truth = rf.RattleParams(
+        TRUTH["film_half_length"], TRUTH["drag_torque"], TRUTH["viscosity"], g.backlash
+    )
     # one recording, only for its measured drive (the fit's θ1)
     rec, _ = synthesize(g, op, truth, seed=args.seed)
 
@@ -58,7 +60,7 @@ def main() -> None:
         opts = FitOptions(seed=args.seed, n_realisations=args.realisations, **kw)
         prob, rigs = build_problem([rec], opts, np.random.default_rng([args.seed, stream]))
         values = {
-            "a": TRUTH["a"],
+            "film_half_length": TRUTH["film_half_length"],
             "drag_torque": TRUTH["drag_torque"],
             "viscosity_scale": TRUTH["viscosity"] / float(rigs[0].viscosity),
             "backlash[0]": g.backlash,

@@ -70,7 +70,7 @@ def truth_point(trial, z_like, truth: dict, viscosity: float) -> np.ndarray:
     names = [s.name for s in specs]
     model = truth["model"]
     values = {
-        "a": truth["a_mm"] * 1e-3,
+        "film_half_length": truth["a_mm"] * 1e-3,
         "drag_torque": truth["drag_torque_Nm"],
         "viscosity_scale": truth["viscosity_Pa_s"] / viscosity,
         "stiffness_scale": model["stiffness_scale"],

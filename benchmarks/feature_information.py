@@ -61,7 +61,9 @@ def features(rec) -> tuple[np.ndarray, np.ndarray]:
 
 def ensemble(geometry, op, params: dict, seeds) -> tuple[np.ndarray, np.ndarray]:
     """Features of the recordings at ``params`` with ``seeds``: (n, 28), (n, 3·bins)."""
-    p = rf.RattleParams(params["a"], params["drag_torque"], params["viscosity"], geometry.backlash)
+    p = rf.RattleParams(
+        params["film_half_length"], params["drag_torque"], params["viscosity"], geometry.backlash
+    )
     out = [features(rf.synthesize(geometry, op, p, seed=int(s), rtol=1e-6)[0]) for s in seeds]
     return np.stack([b for b, _ in out]), np.stack([f for _, f in out])
 
@@ -91,7 +93,7 @@ def regime_study(regime, n: int, delta: float, say) -> dict:
     name, pair, cd, lub, pct, freq, a, mu = regime
     g = rf.table2_pair(pair, center_distance_mm=cd)
     op = OperatingPoint(lub, 20.0, MEAN_SPEED, MEAN_SPEED * pct / 100, freq)
-    truth = {"a": a, "drag_torque": DRAG, "viscosity": mu, "min_film": MIN_FILM}
+    truth = {"film_half_length": a, "drag_torque": DRAG, "viscosity": mu, "min_film": MIN_FILM}
     truth["stiffness_scale"] = 1.0
     names = ["drag_torque", "stiffness_scale"] if lub == "dry" else list(truth)
     t0 = time.perf_counter()
@@ -136,7 +138,7 @@ def result_document(rows: list[dict], n: int, delta: float) -> dict:
 
     def factors(family: str) -> str:
         f = h[family]
-        return f"a {f['a']}, T_b {f['drag_torque']}, μ {f['viscosity']}"
+        return f"a {f['film_half_length']}, T_b {f['drag_torque']}, μ {f['viscosity']}"
 
     return {
         "order": 12.5,

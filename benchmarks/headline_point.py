@@ -44,7 +44,7 @@ VARIANTS = {
 A, T_B, MU = 0.085e-3, 0.025, 0.4942
 GEOMETRY = table2_pair("II", center_distance_mm=65.6)
 TRUTH = {
-    "a": A,
+    "film_half_length": A,
     "drag_torque": T_B,
     "viscosity": MU,
     "squeeze_momentum": float(
@@ -91,9 +91,13 @@ def study(directory: Path, say) -> list[dict]:
 def phrase(params: dict) -> str:
     """Each interval in words: ``T_b [0.012, 0.03] (×2.5)``."""
     out = []
-    for name, short in (("drag_torque", "T_b"), ("a", "a"), ("squeeze_momentum", "M")):
+    for name, short in (
+        ("drag_torque", "T_b"),
+        ("film_half_length", "film_half_length"),
+        ("squeeze_momentum", "M"),
+    ):
         p = params[name]
-        scale = 1e3 if name == "a" else 1.0
+        scale = 1e3 if name == "film_half_length" else 1.0
         span = f"[{p['lower'] * scale:.3g}, {p['upper'] * scale:.3g}]"
         out.append(f"{short} {span} (×{p['factor']:.2f})" if p["factor"] else f"{short} {span}")
     return ", ".join(out)
@@ -112,7 +116,7 @@ def checks(rows: list[dict]) -> dict:
             wide = math.log(bands["squeeze_momentum"]["factor"])
             narrow = folded["squeeze_momentum"]["factor"]
             g_ratio = wide / math.log(narrow) if narrow else None
-        a_known = known and known["a"]["factor"]
+        a_known = known and known["film_half_length"]["factor"]
         out[label] = {
             "drag_torque_factor": t_b,
             "drag_torque_met": bool(t_b and t_b <= 2.0),
@@ -151,8 +155,8 @@ def result_document(rows: list[dict]) -> dict:
     met = [
         f"{k} {label}"
         for label, v in c.items()
-        for k in ("T_b", "M", "a")
-        if v[{"T_b": "drag_torque_met", "M": "group_met", "a": "a_met"}[k]]
+        for k in ("T_b", "M", "film_half_length")
+        if v[{"T_b": "drag_torque_met", "M": "group_met", "film_half_length": "a_met"}[k]]
     ]
     words = {label: check_phrase(label, v, rows) for label, v in c.items()}
     return {

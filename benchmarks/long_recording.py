@@ -36,8 +36,8 @@ PAIRS = {
 }
 SYNTHETIC_SEED = 7
 #: The truth of every file here (the shared ones' from ``truth.json``, the same point).
-TRUTH = {"a": 0.085e-3, "drag_torque": 0.025, "viscosity": 0.4942}
-PARAMETERS = ("a", "drag_torque", "viscosity")
+TRUTH = {"film_half_length": 0.085e-3, "drag_torque": 0.025, "viscosity": 0.4942}
+PARAMETERS = ("film_half_length", "drag_torque", "viscosity")
 
 
 def synthetic_long(directory: Path) -> Path:
@@ -130,7 +130,7 @@ def row_phrase(row: dict) -> str:
         return f"[{p['lower'] * unit_scale:.3g}, {p['upper'] * unit_scale:.3g}]"
 
     parts = []
-    for name, scale, unit in (("drag_torque", 1.0, "N m"), ("a", 1e3, "mm")):
+    for name, scale, unit in (("drag_torque", 1.0, "N m"), ("film_half_length", 1e3, "mm")):
         short, long = row["3s"]["parameters"][name], row["30s"]["parameters"][name]
         parts.append(
             f"{'T_b' if name == 'drag_torque' else 'a'} {interval(short, scale, unit)} → "
@@ -152,7 +152,7 @@ def result_document(rows: list[dict]) -> dict:
         for p in r[d]["parameters"].values()
     )
     t_b = sum(r["width_ratio"]["drag_torque"] >= 2 for r in rows)
-    a = sum(r["width_ratio"]["a"] >= 2 for r in rows)
+    a = sum(r["width_ratio"]["film_half_length"] >= 2 for r in rows)
     return {
         "order": 12.6,
         "what": "what a 30 s recording pins against a 3 s one of the same point (pair II, "

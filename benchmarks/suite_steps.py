@@ -45,7 +45,7 @@ AIM_DIAGNOSE = 900.0  # s, identify + every effect of rattlefit.physics.effects,
 # the shared file whose truth lists an unmodelled effect (run-out) and that has rattle
 DIAGNOSE_RECORDING = "pairII_boundary_65.4_20pct_16Hz_runout.h5"
 
-PARAM_NAMES = ("a", "T_b", "mu", "backlash", "h_min", "k_scale")
+PARAM_NAMES = ("film_half_length", "T_b", "mu", "backlash", "h_min", "k_scale")
 
 
 # -- helpers used in the child processes ---------------------------------------------------

@@ -43,7 +43,7 @@ from rattlefit.inference.options import FitOptions
 from rattlefit.simulation.synthetic import backlash_sweep
 from studies import add_set_argument, set_overrides, write_json
 
-SHARED = ("a", "drag_torque", "viscosity")
+SHARED = ("film_half_length", "drag_torque", "viscosity")
 
 
 def log_width(q) -> float:
@@ -166,7 +166,7 @@ def main() -> None:
         sweep = backlash_sweep(cds, seeds)
         truth = sweep[0][1]
         truth = {
-            "a": float(truth.film_half_length),
+            "film_half_length": float(truth.film_half_length),
             "drag_torque": float(truth.drag_torque),
             "viscosity": float(truth.viscosity),
         }

@@ -37,8 +37,8 @@ def companion():
     """The bundled boundary file and its oil-jet companion, with their truths by name."""
     tb, to = read_truth(BOUNDARY), read_truth(OIL_JET)
     truths = {
-        "a[boundary]": tb["film_half_length"],
-        "a[oil_jet]": to["film_half_length"],
+        "film_half_length[boundary]": tb["film_half_length"],
+        "film_half_length[oil_jet]": to["film_half_length"],
         "drag_torque": tb["drag_torque"],
         "viscosity": tb["viscosity"],
     }
@@ -50,7 +50,7 @@ def sweep():
     runs = backlash_sweep(SWEEP_CENTRE_DISTANCES_MM, SWEEP_SEEDS)
     p = runs[0][1]
     truths = {
-        "a": float(p.film_half_length),
+        "film_half_length": float(p.film_half_length),
         "drag_torque": float(p.drag_torque),
         "viscosity": float(p.viscosity),
     }

@@ -93,7 +93,7 @@ def momentum(problem: Problem, z) -> np.ndarray:
     v = {s.name: np.asarray(s.value(z[:, i])) for i, s in enumerate(problem.specs)}
     return np.asarray(
         squeeze_momentum(
-            v["a"],
+            v["film_half_length"],
             v["viscosity_scale"] * float(problem.viscosities[0]),
             v["min_film"],
             float(problem.models.curvature_radius[0]),
@@ -251,7 +251,7 @@ def main() -> None:
             print(
                 f"[{point} {k + 1}/{args.cases}] {time.perf_counter() - t1:.1f} s; χ² "
                 f"{row['chi2']:.1f}/{row['dof']}; ranks "
-                + " ".join(f"{n}:{row[n]['rank']}" for n in ("a", "drag_torque")),
+                + " ".join(f"{n}:{row[n]['rank']}" for n in ("film_half_length", "drag_torque")),
                 flush=True,
             )
         names = [n for n in rows[0] if isinstance(rows[0][n], dict)]

@@ -56,7 +56,7 @@ def main() -> None:
         )
         t = truth[name]
         params = {
-            "a": entry(res.parameters["a"], t["a_mm"] * 1e-3),
+            "film_half_length": entry(res.parameters["film_half_length"], t["a_mm"] * 1e-3),
             "drag_torque": entry(res.parameters["drag_torque"], t["drag_torque_Nm"]),
             "viscosity": entry(res.parameters["viscosity"], t["viscosity_Pa_s"]),
         }

@@ -63,14 +63,14 @@ def test_simulate_writes_valid_recording_with_truth(tmp_path):
         "simulate",
         "--pair",
         "II",
-        "--center-distance",
+        "--center-distance-mm",
         "65.0",
-        "--fluctuation",
+        "--fluctuation-pct",
         "10",
         "--frequency",
         "8",
-        "--film-half-length",
-        "0.085e-3",
+        "--film-half-length-mm",
+        "0.085",
         "--drag-torque",
         "0.025",
         "--duration",
@@ -105,8 +105,8 @@ def test_simulate_refuses_unphysical_and_keeps_old_output(tmp_path):
             "simulate",
             "--pair",
             "II",
-            "--film-half-length",
-            "1e-4",
+            "--film-half-length-mm",
+            "0.1",
             "--drag-torque",
             "-1",
             "-o",
@@ -137,7 +137,7 @@ def test_identify_writes_json_and_plots(tmp_path):
             "--plot",
             str(plots),
             "--prior",
-            "min_film=3e-6:0.1",
+            "min_film=3um:0.1",
         ],
     )
     assert result.exit_code == 0, result.output
@@ -148,7 +148,7 @@ def test_identify_writes_json_and_plots(tmp_path):
     assert doc["fit"]["options"]["priors"]["min_film"]["log_sd"] == 0.1
     h = doc["parameters"]["min_film"]
     assert 3e-6 * np.exp(-0.45) < h["lower"] < h["upper"] < 3e-6 * np.exp(0.45), h
-    for name, unit in (("a", "m"), ("drag_torque", "N m"), ("viscosity", "Pa s")):
+    for name, unit in (("film_half_length", "m"), ("drag_torque", "N m"), ("viscosity", "Pa s")):
         p = doc["parameters"][name]
         assert p["unit"] == unit
         assert p["lower"] <= p["upper"]
@@ -172,8 +172,9 @@ def test_identify_bad_file_is_one_clean_error(tmp_path):
     ("prior", "problem"),
     [
         ("h_min=2e-6:0.1", "not a nuisance parameter"),
-        ("min_film=2e-6", "expected NAME=CENTER:LOG_SD"),
-        ("min_film=1:0.1", "outside the range"),
+        ("min_film=2um", "expected NAME=CENTER:LOG_SD"),
+        ("min_film=1000um:0.1", "outside the range"),
+        ("min_film=2e-6:0.1", "must say so"),
         ("viscosity_scale=1:0", "log_sd must be a positive number"),
     ],
 )
@@ -243,7 +244,7 @@ def test_report_finds_recordings_beside_the_fit_and_writes_html(tmp_path):
     measured = (-6.0 - 1.5 * np.log10(f / 5.0)).tolist()
     doc = {
         "parameters": {
-            "a": {
+            "film_half_length": {
                 "unit": "m",
                 "estimate": 8.5e-5,
                 "lower": 7e-5,
@@ -267,7 +268,7 @@ def test_report_finds_recordings_beside_the_fit_and_writes_html(tmp_path):
     )
     assert result.exit_code == 0, result.output
     html = out.read_text(encoding="utf-8")
-    assert html.startswith("<!DOCTYPE html>") and 'data-param="a"' in html
+    assert html.startswith("<!DOCTYPE html>") and 'data-param="film_half_length"' in html
     assert "r.h5" in html
     # a recording named on the command line instead; a missing one is named
     result = CliRunner().invoke(

@@ -73,15 +73,15 @@ def test_the_monte_carlo_noise_of_the_derivative_is_not_information():
 def test_interval_factors_and_adding_information():
     # a parameter with information 1/σ² has the interval exp(±1.96σ): factor exp(2·1.96σ)
     names, info = add_information(
-        ["a", "drag_torque"], np.diag([4.0, 0.0]), ["drag_torque"], [[1.0]]
+        ["film_half_length", "drag_torque"], np.diag([4.0, 0.0]), ["drag_torque"], [[1.0]]
     )
-    assert names == ["a", "drag_torque"]
+    assert names == ["film_half_length", "drag_torque"]
     f = interval_factors(names, info)
-    assert f["a"] == pytest.approx(math.exp(2 * 1.959963984540054 * 0.5))
+    assert f["film_half_length"] == pytest.approx(math.exp(2 * 1.959963984540054 * 0.5))
     assert f["drag_torque"] == pytest.approx(math.exp(2 * 1.959963984540054))
-    assert interval_factors(["a"], np.zeros((1, 1)))["a"] == math.inf
-    names, info = add_information(names, info, ["a[oil_jet]"], [[9.0]])
-    assert names[-1] == "a[oil_jet]" and info[2, 2] == 9.0 and info[0, 2] == 0.0
+    assert interval_factors(["film_half_length"], np.zeros((1, 1)))["film_half_length"] == math.inf
+    names, info = add_information(names, info, ["film_half_length[oil_jet]"], [[9.0]])
+    assert names[-1] == "film_half_length[oil_jet]" and info[2, 2] == 9.0 and info[0, 2] == 0.0
 
 
 def test_a_planned_centre_distance_opens_the_backlash_as_the_involute_relation_says():

@@ -203,7 +203,7 @@ def test_baseline_refit_starts_from_the_identification_and_the_free_alternatives
 def test_baseline_warnings_flag_an_unconverged_or_far_identification():
     assert baseline_warnings(True, 100.0, 60.0) == []
     (w,) = baseline_warnings(False, 100.0, 90.0)
-    assert "step limit" in w and "--quick-fit" in w
+    assert "step limit" in w and "--quick" in w
     (w,) = baseline_warnings(True, 1440.0, 300.0)
     assert "1440.0" in w and "300.0" in w
     assert len(baseline_warnings(False, 1440.0, 300.0)) == 2

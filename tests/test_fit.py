@@ -43,7 +43,7 @@ from rattlefit.io.recording import OperatingPoint
 from rattlefit.physics.oil import dynamic_viscosity
 from rattlefit.simulation.synthetic import PAPER_OIL, backlash_sweep
 
-TARGETS = ("a", "drag_torque", "viscosity")
+TARGETS = ("film_half_length", "drag_torque", "viscosity")
 
 # Seeds. A recording's seed picks its chaotic realisation, a fit's seed its release states,
 # starts and dither draws: the statistical assertions below are checked at these.
@@ -88,7 +88,7 @@ WIDE_PRIOR_END_FACTOR = 1.2  # a prior wider than the range: its starts reach ne
 def _truth_of(params):
     d = params.as_dict()
     return {
-        "a": float(d["film_half_length"]),
+        "film_half_length": float(d["film_half_length"]),
         "drag_torque": float(d["drag_torque"]),
         "viscosity": float(d["viscosity"]),
     }
@@ -137,19 +137,28 @@ def test_an_oil_jet_companion_identifies_the_boundary_film(mild_recording):
         seed=FIT_SEED, n_covariance_realisations=12, n_refine=1, profile_continuation=0
     )
     result = identify([rec, companion], options)
-    truth = {**truth, "a[boundary]": truth["a"], "a[oil_jet]": OIL_JET_FILM}
-    del truth["a"]
+    truth = {
+        **truth,
+        "film_half_length[boundary]": truth["film_half_length"],
+        "film_half_length[oil_jet]": OIL_JET_FILM,
+    }
+    del truth["film_half_length"]
     assert not _misses(result, truth), ("(lower, truth, upper):", _misses(result, truth))
-    a = result.parameters["a[boundary]"]
+    a = result.parameters["film_half_length[boundary]"]
     # the companion narrows a[boundary] to a two-sided interval …
     assert a.bound in (None, "interval") and a.upper / a.lower < COMPANION_WIDTH, a
     # … and where a is reported identified (a factor ≤ IDENTIFIED_RATIO), the
     # estimate lands within ESTIMATE_TOLERANCE of the truth
     if a.identified:
-        assert abs(a.estimate / truth["a[boundary]"] - 1) < ESTIMATE_TOLERANCE, a
-    assert result.parameters["a[oil_jet]"].bound == "lower"  # saturated: a bound
+        assert abs(a.estimate / truth["film_half_length[boundary]"] - 1) < ESTIMATE_TOLERANCE, a
+    assert result.parameters["film_half_length[oil_jet]"].bound == "lower"  # saturated: a bound
     doc = result.to_json()
-    assert list(doc["parameters"])[:4] == ["a[boundary]", "a[oil_jet]", "drag_torque", "viscosity"]
+    assert list(doc["parameters"])[:4] == [
+        "film_half_length[boundary]",
+        "film_half_length[oil_jet]",
+        "drag_torque",
+        "viscosity",
+    ]
 
 
 @pytest.mark.slow  # one fit
@@ -157,7 +166,7 @@ def test_mild_rattle_tells_the_film_from_dry_flanks(mild_recording):
     rec, truth = mild_recording
     result = identify([rec], FitOptions(seed=FIT_SEED))
     assert not _misses(result, truth), ("(lower, truth, upper):", _misses(result, truth))
-    a = result.parameters["a"]
+    a = result.parameters["film_half_length"]
     # in mild rattle the data bound the film from below: a film of 10 µm takes (10/85)³ of the
     # true film's momentum sink ∫S dh ≈ 4μZa³/h_min², as good as dry, and a dry recording's
     # interval reaches 0 (test_dry_flanks_are_not_given_a_film). From above only the viscosity
@@ -166,12 +175,12 @@ def test_mild_rattle_tells_the_film_from_dry_flanks(mild_recording):
     # upper end may be the range's and no width is asked; only the lower end is.
     assert a.bound in (None, "interval", "lower") and a.lower > DRY_FILM, a
     if a.identified:  # then the estimate is within ESTIMATE_TOLERANCE
-        assert abs(a.estimate / truth["a"] - 1) < ESTIMATE_TOLERANCE, a
+        assert abs(a.estimate / truth["film_half_length"] - 1) < ESTIMATE_TOLERANCE, a
     doc = result.to_json()
     assert set(TARGETS) <= set(doc["parameters"])
     for k in TARGETS:
         assert {"estimate", "lower", "upper", "unit"} <= set(doc["parameters"][k])
-    assert doc["parameters"]["a"]["unit"] == "m"
+    assert doc["parameters"]["film_half_length"]["unit"] == "m"
     json.dumps(doc)  # serialisable
 
 
@@ -193,10 +202,10 @@ def test_dry_flanks_are_not_given_a_film():
     p = rf.RattleParams(0.0, 0.03, 0.4942, g.backlash)
     rec, _ = synthesize(g, op, p, seed=DRY_SEED)
     result = identify([rec], FitOptions(seed=DRY_SEED))
-    a = result.parameters["a"]
+    a = result.parameters["film_half_length"]
     assert a.lower < DRY_FILM and not a.identified, a
     assert a.upper < OIL_JET_FILM, a
-    truth = {k: v for k, v in _truth_of(p).items() if k != "a"}
+    truth = {k: v for k, v in _truth_of(p).items() if k != "film_half_length"}
     assert all(_covered(result, truth).values()), result.parameters
 
 
@@ -262,7 +271,7 @@ def test_shared_recordings_truth_inside_intervals(name, shared_recordings, share
     t = shared_truth[name]
     assert t["unmodelled_effects"] == []
     truth = {
-        "a": t["a_mm"] * 1e-3,
+        "film_half_length": t["a_mm"] * 1e-3,
         "drag_torque": t["drag_torque_Nm"],
         "viscosity": t["viscosity_Pa_s"],
     }
@@ -468,8 +477,12 @@ def test_a_fit_across_lubrications_gives_each_its_film_and_shares_the_oil(
     recs = [read_recording(shared_recordings / f"{n}.h5") for n in names]
     problem = _problem(recs, FitOptions.quick())
     spec_names = [s.name for s in problem.specs]
-    assert spec_names[:3] == ["a[boundary]", "a[oil_jet]", "drag_torque"]
-    assert problem.films == ("a[boundary]", "a[oil_jet]")
+    assert spec_names[:3] == [
+        "film_half_length[boundary]",
+        "film_half_length[oil_jet]",
+        "drag_torque",
+    ]
+    assert problem.films == ("film_half_length[boundary]", "film_half_length[oil_jet]")
     z = np.zeros(len(spec_names))
     films = [0.085e-3, 1e-3]  # the truths of both files
     for i, a in enumerate(films):
@@ -493,9 +506,9 @@ def test_a_fit_across_lubrications_gives_each_its_film_and_shares_the_oil(
         assert lo <= v.min() < END_FACTOR * lo and hi / END_FACTOR < v.max() <= hi  # end to end
     assert np.all(starts[:, 3:] == starts[0, 3:])
     # a prior on the single-lubrication name would replace nothing here: refused, not ignored
-    film = ParameterSpec("a", "m", 1e-5, 1e-3)
+    film = ParameterSpec("film_half_length", "m", 1e-5, 1e-3)
     with pytest.raises(rf.RattlefitError, match="'a' is not a parameter of this fit"):
-        _problem(recs, FitOptions.quick(priors={"a": film}))
+        _problem(recs, FitOptions.quick(priors={"film_half_length": film}))
 
 
 def test_a_fit_across_lubrications_starts_where_each_lubrications_own_search_ends(
@@ -512,24 +525,28 @@ def test_a_fit_across_lubrications_starts_where_each_lubrications_own_search_end
     recs = [read_recording(shared_recordings / f"{n}.h5") for n in names]
     min_film = ParameterSpec("min_film", "m", 1e-7, 1e-4, center=3e-6, log_sd=0.1)
     backlash = ParameterSpec("backlash[2]", "m", 2.9e-4, 3.5e-4, center=3.2e-4, log_sd=0.01)
-    oil_jet_film = ParameterSpec("a[oil_jet]", "m", 1e-4, 5e-3)
+    oil_jet_film = ParameterSpec("film_half_length[oil_jet]", "m", 1e-4, 5e-3)
     options = FitOptions.quick(
-        priors={"min_film": min_film, "backlash[2]": backlash, "a[oil_jet]": oil_jet_film}
+        priors={
+            "min_film": min_film,
+            "backlash[2]": backlash,
+            "film_half_length[oil_jet]": oil_jet_film,
+        }
     )
     joint = _problem(recs, options)
     groups = lubrication_groups(joint.films)
-    assert groups == {"a[boundary]": [0, 2], "a[oil_jet]": [1]}
+    assert groups == {"film_half_length[boundary]": [0, 2], "film_half_length[oil_jet]": [1]}
     # the joint priors that apply, renamed: backlash[2] is the boundary fit's backlash[1]
-    boundary_options = group_options(options, "a[boundary]", [0, 2])
+    boundary_options = group_options(options, "film_half_length[boundary]", [0, 2])
     assert set(boundary_options.priors) == {"min_film", "backlash[1]"}
     assert boundary_options.priors["backlash[1]"].center == 3.2e-4
-    oil_jet_options = group_options(options, "a[oil_jet]", [1])
-    assert set(oil_jet_options.priors) == {"min_film", "a"}
-    assert oil_jet_options.priors["a"].lower == 1e-4
+    oil_jet_options = group_options(options, "film_half_length[oil_jet]", [1])
+    assert set(oil_jet_options.priors) == {"min_film", "film_half_length"}
+    assert oil_jet_options.priors["film_half_length"].lower == 1e-4
     # each lubrication's "optimum": distinct values, to see where each one lands
     own = {
-        "a[boundary]": {
-            "a": 7e-5,
+        "film_half_length[boundary]": {
+            "film_half_length": 7e-5,
             "drag_torque": 0.02,
             "viscosity_scale": 0.8,
             "stiffness_scale": 1.1,
@@ -537,8 +554,8 @@ def test_a_fit_across_lubrications_starts_where_each_lubrications_own_search_end
             "backlash[0]": 7.8e-4,
             "backlash[1]": 3.1e-4,
         },
-        "a[oil_jet]": {
-            "a": 9e-4,
+        "film_half_length[oil_jet]": {
+            "film_half_length": 9e-4,
             "drag_torque": 0.03,
             "viscosity_scale": 1.3,
             "stiffness_scale": 0.9,
@@ -547,19 +564,24 @@ def test_a_fit_across_lubrications_starts_where_each_lubrications_own_search_end
         },
     }
     optima = {}
-    for film, sub_options in (("a[boundary]", boundary_options), ("a[oil_jet]", oil_jet_options)):
+    for film, sub_options in (
+        ("film_half_length[boundary]", boundary_options),
+        ("film_half_length[oil_jet]", oil_jet_options),
+    ):
         sub = _problem([recs[r] for r in groups[film]], sub_options)
         optima[film] = (sub, np.array([s.z_of(own[film][s.name]) for s in sub.specs]))
     starts = combined_starts(joint, optima)
     assert starts.shape == (2, len(joint.specs))
     expected_own = {
-        "a[boundary]": 7e-5,
-        "a[oil_jet]": 9e-4,
+        "film_half_length[boundary]": 7e-5,
+        "film_half_length[oil_jet]": 9e-4,
         "backlash[0]": 7.8e-4,
         "backlash[1]": 7.7e-4,
         "backlash[2]": 3.1e-4,
     }
-    for row, donor in zip(starts, ("a[boundary]", "a[oil_jet]"), strict=True):
+    for row, donor in zip(
+        starts, ("film_half_length[boundary]", "film_half_length[oil_jet]"), strict=True
+    ):
         got = {s.name: s.value(z) for s, z in zip(joint.specs, row, strict=True)}
         for name, value in got.items():
             want = expected_own.get(name, own[donor].get(name))
@@ -637,7 +659,7 @@ def test_starts_can_be_ranked_by_their_realisation_nearest_the_recording(mild_re
 
 
 def test_estimate_reports_bounds_and_identification():
-    a = ParameterSpec("a", "m", 1e-6, 5e-3)
+    a = ParameterSpec("film_half_length", "m", 1e-6, 5e-3)
     z = a.z_of
     # two-sided and narrower than a factor 1.5 (about ±20 %): identified, with an estimate
     e = estimate(a, z(1e-4), z(0.85e-4), z(1.25e-4))
@@ -831,7 +853,7 @@ def test_a_prior_under_a_wrong_name_is_refused_not_ignored():
     with pytest.raises(rf.RattlefitError, match="a ParameterSpec named 'viscosity_scale'"):
         FitOptions(priors={"viscosity_scale": spec})
     with pytest.raises(rf.RattlefitError, match="not a nuisance parameter"):
-        nuisance_prior("a", 1e-4, 0.1)
+        nuisance_prior("film_half_length", 1e-4, 0.1)
 
 
 def test_counts_of_the_profile_stage_are_checked_at_construction():
@@ -860,11 +882,17 @@ def test_counts_of_the_profile_stage_are_checked_at_construction():
 def test_what_would_pin_a_parameter_depends_on_its_lubrication():
     from rattlefit.inference.advice import what_would_pin
 
-    assert what_would_pin("a", ["boundary"], identified=True) == ""
-    assert "oil-jet" in what_would_pin("a", ["boundary"], identified=False)
-    assert "min_film" in what_would_pin("a[boundary]", ["boundary", "oil_jet"], identified=False)
-    assert "boundary recording" in what_would_pin("a[oil_jet]", ["boundary", "oil_jet"], False)
-    assert what_would_pin("a", ["dry"], identified=False) == ""  # dry flanks: no film to pin
+    assert what_would_pin("film_half_length", ["boundary"], identified=True) == ""
+    assert "oil-jet" in what_would_pin("film_half_length", ["boundary"], identified=False)
+    assert "min_film" in what_would_pin(
+        "film_half_length[boundary]", ["boundary", "oil_jet"], identified=False
+    )
+    assert "boundary recording" in what_would_pin(
+        "film_half_length[oil_jet]", ["boundary", "oil_jet"], False
+    )
+    assert (
+        what_would_pin("film_half_length", ["dry"], identified=False) == ""
+    )  # dry flanks: no film to pin
     assert "longer recording" in what_would_pin("drag_torque", ["boundary"], identified=False)
     assert "viscosity_scale" in what_would_pin("viscosity", ["dry"], identified=False)
     assert what_would_pin("min_film", ["boundary"], identified=False) == ""  # a nuisance
@@ -885,7 +913,9 @@ def test_the_folded_statistics_of_the_truth_match_the_recording(mild_recording):
     np.testing.assert_array_equal(data[:nb], np.asarray(bands_only.data)[0])
     z = np.array([s.z_of(s.center) if s.log_sd else 0.0 for s in problem.specs])
     names = [s.name for s in problem.specs]
-    z[names.index("a")] = problem.specs[names.index("a")].z_of(truth["a"])
+    z[names.index("film_half_length")] = problem.specs[names.index("film_half_length")].z_of(
+        truth["film_half_length"]
+    )
     z[names.index("drag_torque")] = problem.specs[names.index("drag_torque")].z_of(
         truth["drag_torque"]
     )

@@ -62,18 +62,18 @@ def test_the_group_coordinate_gives_every_realisation_the_films_parameters(bound
     # dithered by the film's own column: each realisation's parameters are those of the same
     # point in a, to rounding
     problem, z = boundary_problem
-    grouped, i = group_problem(problem, "a")
+    grouped, i = group_problem(problem, "film_half_length")
     z_g, _ = to_group(problem, grouped, i, z, np.eye(len(z)))
     mu = 1.3 * float(problem.viscosities[0])
     radius, width = (
         float(problem.models.curvature_radius[0]),
         float(problem.models.axial_width[0]),
     )
-    assert group_value(problem, z, "a") == pytest.approx(
+    assert group_value(problem, z, "film_half_length") == pytest.approx(
         float(squeeze_momentum(0.08e-3, mu, 3e-6, radius, width)), rel=1e-12
     )
     assert float(grouped.specs[i].value(z_g[i])) == pytest.approx(
-        group_value(problem, z, "a"), rel=1e-9
+        group_value(problem, z, "film_half_length"), rel=1e-9
     )
     dither = problem.rows(z[None])[3]  # each realisation's dither, as a simulation gets it
     dither_g = grouped.rows(z_g[None])[3]
@@ -87,7 +87,7 @@ def test_the_group_coordinate_gives_every_realisation_the_films_parameters(bound
 def test_the_group_covariance_is_carried_by_the_coordinate_changes_jacobian(boundary_problem):
     # against central differences of the map z → z_g
     problem, z = boundary_problem
-    grouped, i = group_problem(problem, "a")
+    grouped, i = group_problem(problem, "film_half_length")
     p = len(z)
     jac = np.zeros((p, p))
     for j in range(p):
@@ -114,7 +114,7 @@ def test_with_the_nuisances_known_the_groups_interval_is_the_films_carried_throu
         seed=0, priors=priors, profile_bisections=4, profile_rounds=1, profile_roughness=False
     )
     result = rf.identify([rec], options)
-    a, g = result.parameters["a"], result.parameters["squeeze_momentum"]
+    a, g = result.parameters["film_half_length"], result.parameters["squeeze_momentum"]
     mp = result.map_params[0]
     problem = result.problem
     radius, width = (

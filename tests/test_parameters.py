@@ -21,7 +21,7 @@ from rattlefit.inference.parameters import (
 
 
 def test_the_coordinate_maps_onto_the_range_and_back():
-    spec = ParameterSpec("a", "m", 1e-6, 5e-3)
+    spec = ParameterSpec("film_half_length", "m", 1e-6, 5e-3)
     # the closed form: z = 0 is the geometric middle of the range
     assert spec.value(0.0) == pytest.approx(math.sqrt(1e-6 * 5e-3), rel=1e-12)
     for v in (2e-6, 85e-6, 1e-3, 4.9e-3):
@@ -51,17 +51,23 @@ def test_a_spec_needs_a_positive_increasing_range():
 
 
 def test_default_specs_and_film_names():
-    assert film_names(["boundary", "boundary"]) == ("a", "a")
+    assert film_names(["boundary", "boundary"]) == ("film_half_length", "film_half_length")
     assert film_names(["boundary", "oil_jet", "boundary"]) == (
-        "a[boundary]",
-        "a[oil_jet]",
-        "a[boundary]",
+        "film_half_length[boundary]",
+        "film_half_length[oil_jet]",
+        "film_half_length[boundary]",
     )
     specs = default_specs([], {})
     names = [s.name for s in specs]
-    assert names == ["a", "drag_torque", "viscosity_scale", "stiffness_scale", "min_film"]
+    assert names == [
+        "film_half_length",
+        "drag_torque",
+        "viscosity_scale",
+        "stiffness_scale",
+        "min_film",
+    ]
     # the free parameters have no prior; every nuisance has one, centred inside its range
-    assert [s.name for s in specs if s.log_sd is None] == ["a", "drag_torque"]
+    assert [s.name for s in specs if s.log_sd is None] == ["film_half_length", "drag_torque"]
     assert set(NUISANCES) == {"viscosity_scale", "stiffness_scale", "min_film"}
     for s in specs:
         if s.log_sd is not None:
@@ -69,16 +75,21 @@ def test_default_specs_and_film_names():
 
 
 def test_a_prior_from_the_command_line():
-    name, spec = parse_prior("min_film=2e-6:0.1")
+    # the centre in the unit the table shows, named: h_min in µm
+    name, spec = parse_prior("min_film=2um:0.1")
     assert (name, spec.center, spec.log_sd, spec.unit) == ("min_film", 2e-6, 0.1, "m")
+    assert parse_prior("min_film=2 µm:0.1")[1].center == 2e-6
+    assert parse_prior("viscosity_scale=1.2:0.05")[1].center == 1.2
     # the range stays the default's
     (default,) = (s for s in default_specs([], {}) if s.name == "min_film")
     assert (spec.lower, spec.upper) == (default.lower, default.upper)
     for text, problem in (
-        ("min_film=2e-6", "expected NAME=CENTER:LOG_SD"),
+        ("min_film=2um", "expected NAME=CENTER:LOG_SD"),
         ("min_film=x:0.1", "expected NAME=CENTER:LOG_SD"),
-        ("min_film=1:0.1", "outside the range"),
-        ("min_film=2e-6:-0.1", "log_sd must be a positive number"),
+        ("min_film=2e-6:0.1", "is in µm and must say so, e.g. min_film=2um:0.1"),
+        ("viscosity_scale=1mm:0.1", "has no unit"),
+        ("min_film=1000um:0.1", "outside the range"),
+        ("min_film=2um:-0.1", "log_sd must be a positive number"),
         ("drag_torque=0.02:0.1", "not a nuisance parameter"),
     ):
         with pytest.raises(RattlefitError, match=problem):

@@ -18,13 +18,13 @@ from rattlefit.report import format_table
 
 
 def _result(chi2, dof, chi2_recordings=(), recordings=(), regime_share=(), profile=None):
-    a = ParameterEstimate("a", "m", 8.5e-5, 6e-5, 1.1e-4, True)
+    a = ParameterEstimate("film_half_length", "m", 8.5e-5, 6e-5, 1.1e-4, True)
     tb = ParameterEstimate("drag_torque", "N m", 0.02, 0.0, 0.05, False, "upper")
     mu = ParameterEstimate("viscosity", "Pa s", 0.45, 0.3, 0.6, False, "interval")
     return FitResult(
-        parameters={"a": a, "drag_torque": tb, "viscosity": mu},
+        parameters={"film_half_length": a, "drag_torque": tb, "viscosity": mu},
         correlation=np.eye(3),
-        names=["a", "drag_torque", "viscosity"],
+        names=["film_half_length", "drag_torque", "viscosity"],
         chi2=chi2,
         dof=dof,
         n_iterations=3,
@@ -80,7 +80,7 @@ def test_the_table_shows_the_physics_first_and_a_measured_nuisance_as_measured()
     text = format_table(dataclasses.replace(res, parameters=params))
     order = [line.split()[0] for line in text.splitlines()[2:8]]
     assert order == [
-        "a",
+        "film_half_length",
         "drag_torque",
         "viscosity",
         "squeeze_momentum",
@@ -157,7 +157,9 @@ def test_the_table_says_what_set_the_profile_threshold(mc, jitter, source):
 DATA = Path(__file__).resolve().parents[1] / "data"
 BOUNDARY = DATA / "pairII_boundary_65.6_20pct_16Hz.h5"
 CHROMIUM = Path("/usr/bin/chromium")
-MM = {"m": 1e3}  # the report shows lengths in mm, everything else in SI
+#: The display units the report must use (the registry's, spelt out here): lengths in mm,
+#: h_min in µm, everything else in SI.
+SHOWN = {"min_film": (1e6, "µm"), "m": (1e3, "mm")}
 
 
 class _Page(HTMLParser):
@@ -200,8 +202,9 @@ def _parse(html: str) -> _Page:
     return page
 
 
-def _g4(value, unit):
-    return f"{value * MM.get(unit, 1.0):.4g}"
+def _g4(value, name, unit):
+    scale = SHOWN.get(name.split("[")[0], SHOWN.get(unit, (1.0, unit)))[0]
+    return f"{value * scale:.4g}"
 
 
 def _check_self_contained(html: str) -> _Page:
@@ -226,13 +229,13 @@ def _check_parameters(page: _Page, fit: dict) -> None:
         assert float(row["attrs"]["data-upper"]) == p["upper"]
         # every parameter has its estimate (the optimum), identified or not
         assert float(row["attrs"]["data-estimate"]) == p["estimate"]
-        assert f"|{_g4(p['estimate'], p['unit'])}|" in row["text"]
+        assert f"|{_g4(p['estimate'], name, p['unit'])}|" in row["text"]
         if p["bound"] == "lower":
-            assert f"|≥ {_g4(p['lower'], p['unit'])}|" in row["text"]
+            assert f"|≥ {_g4(p['lower'], name, p['unit'])}|" in row["text"]
         elif p["bound"] == "upper":
-            assert f"|≤ {_g4(p['upper'], p['unit'])}|" in row["text"]
+            assert f"|≤ {_g4(p['upper'], name, p['unit'])}|" in row["text"]
         else:
-            lo, hi = _g4(p["lower"], p["unit"]), _g4(p["upper"], p["unit"])
+            lo, hi = _g4(p["lower"], name, p["unit"]), _g4(p["upper"], name, p["unit"])
             assert f"|[{lo}, {hi}]|" in row["text"]
 
 
@@ -270,10 +273,10 @@ def test_reports_of_the_bundled_recordings(bundled_fits, tmp_path):
         assert name in text and "IGR" in text and "backlash" in text
         assert f"χ² = {fit['fit']['chi2']:.1f}" in text
         lub = rec.operating.lubrication
-        a = page.rows["a"]["text"]
+        a = page.rows["film_half_length"]["text"]
         if lub == "boundary":
             assert "μ·a³/h_min²" in a  # the film trades against h_min and μ
-        if lub == "oil_jet" and fit["parameters"]["a"]["bound"] == "lower":
+        if lub == "oil_jet" and fit["parameters"]["film_half_length"]["bound"] == "lower":
             assert "saturates" in a
         # the default: the recordings read from the paths the fit names; atomic write
         out = write_report(tmp_path / f"{name}.html", fit=fit)
@@ -286,7 +289,7 @@ def _handmade_fit(recording=BOUNDARY) -> dict:
     f = np.geomspace(5.0, 4000.0, 30)
     measured = -6.0 - 1.5 * np.log10(f / 5.0)
     p = {
-        "a": ("m", 8.5e-5, 7.1e-5, 9.9e-5, True, None),
+        "film_half_length": ("m", 8.5e-5, 7.1e-5, 9.9e-5, True, None),
         "drag_torque": ("N m", 0.0152, 0.0, 0.0437, False, "upper"),
         "viscosity": ("Pa s", 0.49, 0.3, 0.81, False, "prior"),
     }
@@ -302,7 +305,7 @@ def _handmade_fit(recording=BOUNDARY) -> dict:
             "seed": 3,
             "recordings": [str(recording)],
             "profile": {"threshold": 6.5},
-            "profiles": {"a": [[5e-5, 20.0], [8.5e-5, 0.0], [1.2e-4, 15.0]]},
+            "profiles": {"film_half_length": [[5e-5, 20.0], [8.5e-5, 0.0], [1.2e-4, 15.0]]},
         },
         "spectra": {
             "band_centers_hz": f.tolist(),
@@ -318,8 +321,8 @@ def _handmade_posterior():
     import arviz as az
 
     rng = np.random.default_rng(1)
-    names = {"a": "m", "drag_torque": "N m", "viscosity": "Pa s"}
-    centre = {"a": 8.5e-5, "drag_torque": 0.02, "viscosity": 0.5}
+    names = {"film_half_length": "m", "drag_torque": "N m", "viscosity": "Pa s"}
+    centre = {"film_half_length": 8.5e-5, "drag_torque": 0.02, "viscosity": 0.5}
     draws = {n: centre[n] * np.exp(0.1 * rng.standard_normal((4, 50))) for n in names}
     bands = np.geomspace(5.0, 4000.0, 30)
     observed = -6.0 - 1.5 * np.log10(bands / 5.0)
@@ -496,10 +499,17 @@ def test_the_report_shows_what_to_record_next_when_the_fit_has_it():
         "seed": 4,
         "realisations": 24,
         "candidates": [
-            {"recording": "now", "factors": {"a[boundary]": 5.2, "drag_torque": None}},
+            {
+                "recording": "now",
+                "factors": {"film_half_length[boundary]": 5.2, "drag_torque": None},
+            },
             {
                 "recording": "an oil-jet companion",
-                "factors": {"a[boundary]": 1.91, "drag_torque": 1.32, "viscosity_scale": 1.11},
+                "factors": {
+                    "film_half_length[boundary]": 1.91,
+                    "drag_torque": 1.32,
+                    "viscosity_scale": 1.11,
+                },
             },
         ],
     }
@@ -509,3 +519,48 @@ def test_the_report_shows_what_to_record_next_when_the_fit_has_it():
     assert "+ an oil-jet companion" in text and "×1.32" in text and "×1.11" in text
     assert "this fit alone" in text and "×5.20" in text and "—" in text
     assert "seed 4" in text  # the randomness it used is reported
+
+
+def test_every_name_and_unit_comes_from_the_one_registry(tmp_path):
+    """The table, the JSON, ``--prior``, the profile plots' axes and the report name each
+    parameter alike and show it in the registry's unit (h_min in µm, lengths in mm)."""
+    import rattlefit as rf
+    from rattlefit.inference.parameters import NUISANCES, parse_prior
+    from rattlefit.quantities import QUANTITIES, quantity
+    from rattlefit.report import html_report
+    from rattlefit.report.figures import profile_figure
+
+    assert (QUANTITIES["min_film"].display_unit, QUANTITIES["film_half_length"].display_unit) == (
+        "µm",
+        "mm",
+    )
+    rec = rf.read_recording(DATA / "pairII_boundary_65.6_20pct_16Hz.h5")
+    cheap = FitOptions.quick(seed=0, n_starts=2, max_iterations=1, n_noise_realisations=4)
+    result = rf.identify([rec], cheap)
+    doc = json.loads(json.dumps(result.to_json()))
+    table = {
+        line.split()[0]: line
+        for line in format_table(result).splitlines()[2:]
+        if line and line.split()[0] in doc["parameters"]
+    }
+    page = _parse(html_report(fit=doc, recordings=[rec]))
+    fig = profile_figure(
+        doc["fit"]["profiles"], doc["fit"]["profile"]["threshold"], doc["parameters"]
+    )
+    axes = {ax.get_xlabel() for ax in fig.axes}
+    assert set(table) == set(doc["parameters"]) == set(page.rows)
+    for name, p in doc["parameters"].items():
+        q = quantity(name)
+        assert p["unit"] == q.unit, name  # JSON: SI, as the registry says
+        shown = q.display_unit
+        assert f"  {shown}  " in table[name] if shown else True, table[name]
+        if shown:  # (an empty cell is not in the parsed text)
+            assert f"|{shown}|" in page.rows[name]["text"], page.rows[name]["text"]
+        assert q.meaning in page.rows[name]["text"]
+        if name in doc["fit"]["profiles"]:
+            assert (f"{name} ({shown})" if shown else name) in axes
+        if name in NUISANCES:  # --prior takes the name and the unit the table shows
+            typed = {"µm": "um"}.get(shown, shown)
+            prior_name, spec = parse_prior(f"{name}={q.shown(p['estimate']):.6g}{typed}:0.2")
+            assert prior_name == name and spec.unit == p["unit"]
+            assert spec.center == pytest.approx(p["estimate"], rel=1e-5)

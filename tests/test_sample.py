@@ -104,7 +104,7 @@ def test_without_data_the_chain_draws_the_priors():
     # chain moves in the logit coordinate z, so without the Jacobian term the log-uniform
     # draws would pile up at the range's ends (KS statistic ≈ 0.3 instead of ≈ 0.03)
     specs = (
-        ParameterSpec("a", "m", 1e-6, 5e-3),
+        ParameterSpec("film_half_length", "m", 1e-6, 5e-3),
         ParameterSpec("viscosity_scale", "1", 0.2, 5.0, center=1.0, log_sd=0.5),
     )
     data = np.zeros((1, 3))
@@ -166,7 +166,7 @@ def test_linear_gaussian_posterior_matches_the_closed_form():
 
 
 def test_a_resumed_chain_equals_an_uninterrupted_one(tmp_path):
-    specs = (ParameterSpec("a", "m", 1e-6, 5e-3), ParameterSpec("b", "1", 0.1, 10.0))
+    specs = (ParameterSpec("film_half_length", "m", 1e-6, 5e-3), ParameterSpec("b", "1", 0.1, 10.0))
     target = LogPosterior(
         specs,
         np.zeros((1, 2)),
@@ -243,7 +243,11 @@ def test_posterior_of_a_synthetic_recording_holds_the_truth(tmp_path):
     options = SampleOptions(n_steps=150, seed=CHAIN_SEED)
     post = sample([rec], fit, options, backend=tmp_path / "c.h5")
     ci = post.intervals()
-    for name, truth in (("a", 0.085e-3), ("drag_torque", 0.025), ("viscosity", 0.4942)):
+    for name, truth in (
+        ("film_half_length", 0.085e-3),
+        ("drag_torque", 0.025),
+        ("viscosity", 0.4942),
+    ):
         _, lo, hi = ci[name]
         assert lo <= truth <= hi, (name, lo, truth, hi)
 
@@ -273,7 +277,7 @@ def test_predictive_plot_draws_from_the_kept_chain(tmp_path, small_recording):
 
     options = FitOptions(n_realisations=3)
     problem, _ = build_problem([small_recording], options, np.random.default_rng(BUILD_SEED))
-    truth = {"a": 0.085e-3, "drag_torque": 0.025, "viscosity_scale": 1.0}
+    truth = {"film_half_length": 0.085e-3, "drag_torque": 0.025, "viscosity_scale": 1.0}
     z = np.array([s.z_of(truth.get(s.name, s.center)) for s in problem.specs])
     jitter = np.random.default_rng(JITTER_SEED).normal(size=(20, 12, 6))
     chain_z = np.tile(z, (20, 12, 1)) + 1e-3 * jitter
@@ -305,7 +309,7 @@ def short_chain(tmp_path_factory, small_recording):
     small_recording = rf.read_recording(write_recording(small_recording, directory / "r.h5"))
     options = FitOptions(n_realisations=3, seed=BUILD_SEED)
     problem, _ = build_problem([small_recording], options, np.random.default_rng(BUILD_SEED))
-    truth = {"a": 0.085e-3, "drag_torque": 0.025, "viscosity_scale": 1.0}
+    truth = {"film_half_length": 0.085e-3, "drag_torque": 0.025, "viscosity_scale": 1.0}
     z = np.array([s.z_of(truth.get(s.name, s.center)) for s in problem.specs])
     data = np.asarray(problem.data)
     noise = NoiseModel(
@@ -348,7 +352,7 @@ def test_a_saved_posterior_reopens_as_the_kept_chain(short_chain):
     script = (
         "import json, sys; sys.modules['rattlefit'] = None; import arviz as az; "
         f"idata = az.from_netcdf({str(nc)!r}); "
-        "print(json.dumps(idata.posterior['a'].values.tolist()))"
+        "print(json.dumps(idata.posterior['film_half_length'].values.tolist()))"
     )
     out = subprocess.run(
         [sys.executable, "-c", script], capture_output=True, text=True, check=True
@@ -361,7 +365,8 @@ def test_arviz_summary_gives_the_printed_intervals(short_chain):
     # the saved file is the credible interval that `rattlefit sample` prints
     import arviz as az
 
-    from rattlefit.report import DISPLAY, format_posterior
+    from rattlefit.quantities import display
+    from rattlefit.report import format_posterior
 
     post, _, _, nc = short_chain
     summary = az.summary(
@@ -373,7 +378,7 @@ def test_arviz_summary_gives_the_printed_intervals(short_chain):
         med, lo, hi = row["median"], row["eti_2.5%"], row["eti_97.5%"]
         assert lo < med < hi, row
         np.testing.assert_allclose([med, lo, hi], post.intervals()[name], rtol=SUMMARY_RTOL, atol=0)
-        mult = DISPLAY.get(unit, (1.0, unit))[0]
+        mult = display(name, unit)[0]
         assert printed[name].split()[1] == f"{med * mult:.4g}", printed[name]
         assert f"[{lo * mult:.4g}, {hi * mult:.4g}]" in printed[name], printed[name]
 

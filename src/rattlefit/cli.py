@@ -107,8 +107,9 @@ def _prior_option(func):
         multiple=True,
         metavar="NAME=CENTER:LOG_SD",
         help="Replace a nuisance's log-normal prior (repeatable): NAME is viscosity_scale, "
-        "stiffness_scale or min_film (m), CENTER its median, LOG_SD the sd of its natural "
-        "log, e.g. --prior min_film=2e-6:0.1 when h_min is known to about 10 %.",
+        "stiffness_scale or min_film, CENTER its median in the unit the table shows, named "
+        "(min_film in um), LOG_SD the sd of its natural log; e.g. --prior min_film=2um:0.1 "
+        "when h_min is known to about 10 %.",
     )(func)
 
 
@@ -225,7 +226,14 @@ def import_(source: Path, channel_map: Path, output: Path) -> None:
 
 @main.command()
 @click.option("--pair", type=click.Choice(["I", "II"]), help="Gear pair of the paper's Table 2.")
-@click.option("--center-distance", type=float, default=65.0, show_default=True, help="mm")
+@click.option(
+    "--center-distance-mm",
+    "center_distance",
+    type=float,
+    default=65.0,
+    show_default=True,
+    help="Centre distance, mm.",
+)
 @click.option(
     "--template",
     type=click.Path(dir_okay=False, path_type=Path),
@@ -238,18 +246,59 @@ def import_(source: Path, channel_map: Path, output: Path) -> None:
     show_default=True,
 )
 @click.option(
-    "--temperature", type=float, default=20.0, show_default=True, help="oil temperature, °C"
+    "--oil-temperature-c",
+    "temperature",
+    type=float,
+    default=20.0,
+    show_default=True,
+    help="Oil temperature, °C.",
 )
-@click.option("--mean-speed", type=float, default=52.36, show_default=True, help="Ω_m, rad/s")
-@click.option("--fluctuation", type=float, default=20.0, show_default=True, help="ΔΩ as % of Ω_m")
-@click.option("--frequency", type=float, default=16.0, show_default=True, help="f, Hz")
-@click.option("--film-half-length", type=float, required=True, help="a, m (0 for dry)")
-@click.option("--drag-torque", type=float, required=True, help="T_b, N m")
-@click.option("--viscosity", type=float, help="μ, Pa s (default: the oil at --temperature)")
-@click.option("--min-film", type=float, help="h_min, m  [default: 2e-6, model.DEFAULT_MIN_FILM]")
-@click.option("--stiffness-scale", type=float, default=1.0, show_default=True)
-@click.option("--duration", type=float, default=3.0, show_default=True, help="s")
-@click.option("--seed", type=int, default=0, show_default=True)
+@click.option(
+    "--mean-speed",
+    type=float,
+    default=52.36,
+    show_default=True,
+    help="Drive mean speed Ω_m, rad/s.",
+)
+@click.option(
+    "--fluctuation-pct",
+    "fluctuation",
+    type=float,
+    default=20.0,
+    show_default=True,
+    help="Drive speed fluctuation ΔΩ, % of Ω_m.",
+)
+@click.option(
+    "--frequency", type=float, default=16.0, show_default=True, help="Drive fluctuation f, Hz."
+)
+@click.option(
+    "--film-half-length-mm",
+    "film_half_length",
+    type=float,
+    required=True,
+    help="Oil-film half-length a, mm (0 for dry).",
+)
+@click.option("--drag-torque", type=float, required=True, help="Bearing drag torque T_b, N m.")
+@click.option(
+    "--viscosity", type=float, help="μ, Pa s  [default: the paper's oil at --oil-temperature-c]"
+)
+@click.option(
+    "--min-film-um",
+    "min_film",
+    type=float,
+    default=2.0,
+    show_default=True,
+    help="Adsorbed film h_min, µm.",
+)
+@click.option(
+    "--stiffness-scale",
+    type=float,
+    default=1.0,
+    show_default=True,
+    help="Factor on the ISO mesh stiffness.",
+)
+@click.option("--duration", type=float, default=3.0, show_default=True, help="Length, s.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seeds the simulation.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True)
 @_clean_errors
 def simulate(**o) -> None:
@@ -280,14 +329,16 @@ def simulate(**o) -> None:
         oil.viscosity_100c_cst,
         oil.density_kg_m3,
     )
-    from .physics.model import DEFAULT_MIN_FILM, RattleParams
+    from .physics.model import RattleParams
+    from .quantities import QUANTITIES
 
+    film, h_min = (QUANTITIES[n] for n in ("film_half_length", "min_film"))
     params = RattleParams(
-        o["film_half_length"],
+        o["film_half_length"] / film.scale,
         o["drag_torque"],
         mu,
         geometry.backlash,
-        min_film=DEFAULT_MIN_FILM if o["min_film"] is None else o["min_film"],
+        min_film=o["min_film"] / h_min.scale,
         stiffness_scale=o["stiffness_scale"],
     )
     click.echo(f"simulating {o['duration']:g} s (seed {o['seed']}) …", err=True)
@@ -303,7 +354,7 @@ def simulate(**o) -> None:
     )
     write_recording(rec, o["output"], extra_attrs=truth)
     click.echo(
-        f"wrote {o['output']}  (a = {params.film_half_length:.3g} m, T_b = "
+        f"wrote {o['output']}  (a = {o['film_half_length']:.3g} mm, T_b = "
         f"{float(params.drag_torque):.3g} N m, μ = {mu:.3g} Pa s)"
     )
 
@@ -318,13 +369,15 @@ def simulate(**o) -> None:
     "--realisations",
     type=click.IntRange(min=2),
     default=None,
-    help="Simulated realisations per evaluation [default: FitOptions.n_realisations].",
+    help="Simulated realisations per evaluation of the synthetic likelihood  [default: 6; 3 "
+    "with --quick]",
 )
 @click.option(
     "--starts",
     type=click.IntRange(min=1),
     default=None,
-    help="Starting points evaluated [default: FitOptions.n_starts].",
+    help="Starting points of the search  [default: 64, twice as many per further lubrication; 16 "
+    "with --quick]",
 )
 @click.option(
     "--drive", type=click.Choice(["measured", "commanded"]), default="measured", show_default=True
@@ -341,7 +394,7 @@ def simulate(**o) -> None:
 @click.option(
     "--quick",
     is_flag=True,
-    help="A rough first look, several times faster, with wider intervals (FitOptions.quick).",
+    help="A rough first look, several times faster, with wider intervals.",
 )
 @click.option(
     "--suggest",
@@ -426,7 +479,13 @@ def identify(
     help="Steps discarded as the chain's warm-up (burn-in) [default: a third of --steps].",
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="Seeds the fit and chain.")
-@click.option("--quick-fit", is_flag=True, help="Start from a FitOptions.quick() fit.")
+@click.option(
+    "--quick",
+    "--quick-fit",
+    "quick_fit",
+    is_flag=True,
+    help="Start from a quick identification (as identify --quick; --quick-fit is the old name).",
+)
 @_likelihood_options
 @_output_options(
     "the credible intervals and diagnostics", "the trace, pairwise-marginal and predictive plots"
@@ -532,7 +591,13 @@ def sample(
     help="Comma-separated effects to try [default: all of rattlefit.physics.effects.EFFECTS].",
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="Seeds the fit and tries.")
-@click.option("--quick-fit", is_flag=True, help="Start from a FitOptions.quick() fit.")
+@click.option(
+    "--quick",
+    "--quick-fit",
+    "quick_fit",
+    is_flag=True,
+    help="Start from a quick identification (as identify --quick; --quick-fit is the old name).",
+)
 @click.option(
     "--iterations",
     type=click.IntRange(min=0),

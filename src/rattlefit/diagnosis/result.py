@@ -300,7 +300,7 @@ def baseline_warnings(converged: bool, cost_identified: float, cost_refit: float
         out.append(
             "the identification stopped at its step limit, so the model without effects may "
             "fit better than it does here and an effect may be credited with that; a full "
-            "identification (without --quick-fit) is the safer start."
+            "identification (without --quick) is the safer start."
         )
     if cost_refit < REFIT_WARN_RATIO * cost_identified:
         out.append(

@@ -18,6 +18,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..io.recording import Recording
+from ..quantities import FILM
 from .least_squares import refine_starts
 from .options import FitOptions
 from .problem import Problem, problem_from
@@ -43,8 +44,8 @@ def group_name(joint_name: str, film: str, members: Sequence[int]) -> str | None
     """The name a joint parameter has in the fit of one lubrication's recordings ``members``
     (whose film half-length the joint fit calls ``film``); None if that fit lacks it."""
     if joint_name == film:
-        return "a"
-    if joint_name.startswith("a["):
+        return FILM
+    if joint_name.startswith(f"{FILM}["):
         return None  # another lubrication's film half-length
     r = backlash_index(joint_name)
     if r is not None:

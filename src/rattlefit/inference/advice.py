@@ -2,17 +2,17 @@
 
 from __future__ import annotations
 
-import re
+from ..quantities import FILM, base_name, index_of
 
 #: Advice per parameter (base name, lubrication of its film or None): what would pin it.
 ADVICE = {
-    ("a", "boundary"): (
+    (FILM, "boundary"): (
         "a boundary recording pins the squeeze film's momentum per approach "
         "(squeeze_momentum, ∝ μ·a³/h_min² for a short film), not a alone: fit it "
         "jointly with an oil-jet recording of the same pair (rattlefit identify FILE "
-        "OILJET_FILE), or give h_min as known (--prior min_film=2e-6:0.1 for 10 %)"
+        "OILJET_FILE), or give h_min as known (--prior min_film=2um:0.1 for 10 %)"
     ),
-    ("a", "oil_jet"): (
+    (FILM, "oil_jet"): (
         "under oil jet the film saturates: fit it jointly with a boundary recording of the "
         "same pair"
     ),
@@ -27,19 +27,14 @@ ADVICE = {
 }
 
 
-def base_name(name: str) -> str:
-    """``a[boundary]`` → ``a``, ``backlash[0]`` → ``backlash``."""
-    return re.sub(r"\[.*\]$", "", name)
-
-
 def film_lubrication(name: str, lubrications: list[str]) -> str | None:
-    """The lubrication a film parameter belongs to: ``a[oil_jet]`` → ``oil_jet``, ``a`` → the
-    recordings' one lubrication; None for a parameter that is not a film half-length."""
-    if base_name(name) != "a":
+    """The lubrication a film parameter belongs to: ``film_half_length[oil_jet]`` →
+    ``oil_jet``, ``film_half_length`` → the recordings' one lubrication; None for a parameter
+    that is not a film half-length."""
+    if base_name(name) != FILM:
         return None
-    m = re.fullmatch(r"a\[(.+)\]", name)
-    if m:
-        return m.group(1)
+    if index_of(name) is not None:
+        return index_of(name)
     return lubrications[0] if len(set(lubrications)) == 1 else None
 
 

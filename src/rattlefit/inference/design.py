@@ -28,6 +28,7 @@ from ..features.ensemble import chaotic_part, shrunk_correlation
 from ..io.recording import Recording
 from ..physics.geometry import GearGeometry, backlash_from_center_distance
 from ..physics.model import RattleParams
+from ..quantities import FILM
 from ..simulation.synthetic import synthesize
 from .forward import evaluate
 from .options import FitOptions
@@ -269,9 +270,9 @@ def film_information(rec: Recording, values: dict, films: dict, options, n: int,
     """:func:`recording_information` of ``rec`` at the fitted ``values``, its film named by
     its lubrication (the fitted film of that lubrication, else :data:`TYPICAL_FILM`)."""
     lub = rec.operating.lubrication
-    at = values | {"a": films.get(lub, TYPICAL_FILM.get(lub, 0.0))}
+    at = values | {FILM: films.get(lub, TYPICAL_FILM.get(lub, 0.0))}
     local, info = recording_information(rec, at, options, n=n, rng=rng)
-    return [f"a[{lub}]" if k == "a" else k for k in local], info
+    return [f"{FILM}[{lub}]" if k == FILM else k for k in local], info
 
 
 def add_information(names, info, more_names, more):

@@ -18,6 +18,7 @@ import dataclasses
 from typing import Any
 
 from ..errors import RattlefitError
+from ..quantities import FILM
 from .parameters import ParameterSpec, default_specs
 
 
@@ -427,10 +428,10 @@ class FitOptions:
         known = {s.name for s in default_specs([], {})}  # every name but the backlashes
         for name, spec in self.priors.items():
             # a misspelt name would otherwise replace nothing, silently
-            if not (name in known or name.startswith(("backlash[", "a["))):
+            if not (name in known or name.startswith(("backlash[", f"{FILM}["))):
                 raise RattlefitError(
                     f"FitOptions.priors: unknown parameter {name!r}; expected one of "
-                    f"{', '.join(sorted(known))}, a[lubrication] or backlash[k]"
+                    f"{', '.join(sorted(known))}, {FILM}[lubrication] or backlash[k]"
                 )
             if not isinstance(spec, ParameterSpec) or spec.name != name:
                 raise RattlefitError(

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
@@ -22,6 +23,7 @@ from scipy.special import expit
 
 from ..errors import RattlefitError
 from ..physics.model import DEFAULT_MIN_FILM
+from ..quantities import FILM, quantity
 from ..util import array_namespace
 
 if TYPE_CHECKING:
@@ -77,11 +79,11 @@ def _sigmoid(z):
 
 
 def film_names(lubrications: Sequence[str]) -> tuple[str, ...]:
-    """The name of the film half-length each recording uses: ``a`` when all share one
-    lubrication, else ``a[<lubrication>]`` (one film half-length per lubrication)."""
+    """The name of the film half-length each recording uses: ``film_half_length`` when all
+    share one lubrication, else ``film_half_length[<lubrication>]`` (one per lubrication)."""
     if len(set(lubrications)) <= 1:
-        return ("a",) * len(lubrications)
-    return tuple(f"a[{lub}]" for lub in lubrications)
+        return (FILM,) * len(lubrications)
+    return tuple(f"{FILM}[{lub}]" for lub in lubrications)
 
 
 #: Name of the squeeze-film group's coordinate, the squeeze film's momentum per approach
@@ -90,9 +92,10 @@ MOMENTUM = "squeeze_momentum"
 
 
 def momentum_name(film: str) -> str:
-    """The squeeze-film group's name for the film half-length ``film``: ``a`` →
-    ``squeeze_momentum``, ``a[boundary]`` → ``squeeze_momentum[boundary]``."""
-    return MOMENTUM + film[1:]
+    """The squeeze-film group's name for the film half-length ``film``:
+    ``film_half_length`` → ``squeeze_momentum``, ``film_half_length[boundary]`` →
+    ``squeeze_momentum[boundary]``."""
+    return MOMENTUM + film[len(FILM) :]
 
 
 def films_of(rigs: Sequence[RigSetup]) -> tuple[str, ...]:
@@ -107,7 +110,7 @@ def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec
     in the order the lubrications first appear); everything else but the backlashes is
     shared.
     """
-    films = films_of(rigs) or ("a",)
+    films = films_of(rigs) or (FILM,)
     specs = [
         *(ParameterSpec(n, "m", 1e-6, 5e-3, fd_log_step=0.2) for n in dict.fromkeys(films)),
         ParameterSpec("drag_torque", "N m", 2e-3, 0.5, fd_log_step=0.15),
@@ -174,18 +177,43 @@ def nuisance_prior(name: str, center: float, log_sd: float) -> ParameterSpec:
     return dataclasses.replace(spec, center=center, log_sd=log_sd)
 
 
+#: How a unit may be typed on a command line (``um`` for µm).
+TYPED_UNITS = {"um": "µm", "µm": "µm", "mm": "mm"}
+_CENTER = re.compile(r"\s*([-+0-9.eE]+)\s*([a-zA-Zµ]*)\s*")
+
+
 def parse_prior(text: str) -> tuple[str, ParameterSpec]:
-    """``"NAME=CENTER:LOG_SD"`` (e.g. ``"min_film=2e-6:0.1"``) → ``(name, spec)`` of
-    :func:`nuisance_prior`, for command lines."""
+    """``"NAME=CENTER:LOG_SD"`` → ``(name, spec)`` of :func:`nuisance_prior`, for command
+    lines. CENTER is in the quantity's display unit (:mod:`rattlefit.quantities`), which it
+    must name when there is one: ``min_film=2um:0.1`` (h_min 2 µm, known to about 10 %),
+    ``viscosity_scale=1:0.05``. Raises :class:`~rattlefit.errors.RattlefitError` naming the
+    problem."""
     name, sep, rest = text.partition("=")
     center, sep2, log_sd = rest.partition(":")
+    name = name.strip()
+    m = _CENTER.fullmatch(center)
     try:
-        if not (sep and sep2):
+        if not (sep and sep2 and m):
             raise ValueError
-        values = float(center), float(log_sd)
+        value, sd = float(m.group(1)), float(log_sd)
     except ValueError:
         raise RattlefitError(
-            f"prior {text!r}: expected NAME=CENTER:LOG_SD, e.g. min_film=2e-6:0.1"
+            f"prior {text!r}: expected NAME=CENTER:LOG_SD, e.g. min_film=2um:0.1"
         ) from None
-    name = name.strip()
-    return name, nuisance_prior(name, *values)
+    try:
+        q = quantity(name)
+    except KeyError:
+        q = None
+    if (
+        q is not None
+        and name in NUISANCES
+        and TYPED_UNITS.get(m.group(2), m.group(2)) != q.display_unit
+    ):
+        typed = {"µm": "um"}.get(q.display_unit, q.display_unit)
+        usual = next((s.center for s in default_specs([], {}) if s.name == name), None) or 1.0
+        raise RattlefitError(
+            f"prior {text!r}: {name}'s centre "
+            + (f"is in {q.display_unit} and must say so" if typed else "has no unit")
+            + f", e.g. {name}={q.shown(usual):g}{typed}:{sd:g}"
+        )
+    return name, nuisance_prior(name, value / (q.scale if q else 1.0), sd)

@@ -3,10 +3,9 @@ report of an identification, a posterior and a diagnosis."""
 
 from .document import html_report, write_report
 from .plots import plot_diagnosis, plot_fit, plot_posterior
-from .tables import DISPLAY, format_diagnosis, format_posterior, format_suggestions, format_table
+from .tables import format_diagnosis, format_posterior, format_suggestions, format_table
 
 __all__ = [
-    "DISPLAY",
     "format_diagnosis",
     "format_posterior",
     "format_suggestions",

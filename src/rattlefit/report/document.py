@@ -8,11 +8,10 @@ from html import escape
 from pathlib import Path
 
 from ..diagnosis.result import MISSED_Z
-from ..inference.advice import base_name
 from ..io.recording import Recording
 from ..util import atomic_write
 from . import figures
-from .explain import MEANING, display_unit, estimate_cells, explain, shown, verdict_word
+from .explain import display_unit, estimate_cells, explain, meaning, shown, verdict_word
 from .inputs import (
     check,
     idata_recordings,
@@ -109,17 +108,17 @@ def _parameter_section(fit: dict, lubrications: list[str]) -> str:
     )
     rows = []
     for name, p in fit["parameters"].items():
-        est, interval = estimate_cells(p)
+        est, interval = estimate_cells(name, p)
         cls = "identified" if p["identified"] else "unidentified"
         data = " ".join(f'data-{k}="{p[k]!r}"' for k in ("lower", "upper") if p.get(k) is not None)
         if p.get("estimate") is not None:
             data += f' data-estimate="{p["estimate"]!r}"'
-        meaning = MEANING.get(base_name(name), "")
+        what = meaning(name)
         rows.append(
             f'<tr class="{cls}" data-param="{escape(name)}" {data}>'
-            f'<td><b>{escape(name)}</b><br><span class="meta">{escape(meaning)}</span></td>'
+            f'<td><b>{escape(name)}</b><br><span class="meta">{escape(what)}</span></td>'
             f'<td class="num">{escape(est)}</td><td class="num">{escape(interval)}</td>'
-            f"<td>{escape(display_unit(p['unit']))}</td>"
+            f"<td>{escape(display_unit(name, p['unit']))}</td>"
             f'<td class="status">{escape(verdict_word(p))}</td>'
             f"<td>{escape(explain(name, p, lubrications))}</td></tr>"
         )
@@ -212,9 +211,9 @@ def _posterior_table(posterior: dict) -> str:
         tau = s.get("autocorr_time", {}).get(name, float("nan"))
         rows.append(
             f'<tr data-posterior="{escape(name)}" data-median="{q["median"]!r}">'
-            f'<td>{escape(name)}</td><td class="num">{shown(q["median"], unit)}</td>'
-            f'<td class="num">[{shown(q["lower"], unit)}, {shown(q["upper"], unit)}]</td>'
-            f"<td>{escape(display_unit(unit))}</td>"
+            f'<td>{escape(name)}</td><td class="num">{shown(q["median"], name, unit)}</td>'
+            f'<td class="num">[{shown(q["lower"], name, unit)}, {shown(q["upper"], name, unit)}]'
+            f"</td><td>{escape(display_unit(name, unit))}</td>"
             f'<td class="num">{s["ess"].get(name, float("nan")):.0f}</td>'
             f'<td class="num">{tau:.1f}</td></tr>'
         )
@@ -300,11 +299,11 @@ def _findings_table(diag: dict, paths: list[str]) -> str:
     )
 
 
-def _interval_words(interval, unit: str) -> str:
+def _interval_words(interval, name: str, unit: str) -> str:
     """`` (95 %: lo–hi)`` in display units, or nothing without an interval."""
     if not interval:
         return ""
-    return f" (95 %: {shown(interval[0], unit)}–{shown(interval[1], unit)})"
+    return f" (95 %: {shown(interval[0], name, unit)}–{shown(interval[1], name, unit)})"
 
 
 def _diagnosis_section(diag: dict | None, paths: list[str], recordings) -> str:
@@ -321,8 +320,8 @@ def _diagnosis_section(diag: dict | None, paths: list[str], recordings) -> str:
     rows = []
     for e in diag["effects"]:
         size = ", ".join(
-            f"{k} {shown(v['value'], v['unit'])} {display_unit(v['unit'])}".rstrip()
-            + _interval_words(e.get("intervals", {}).get(k), v["unit"])
+            f"{k} {shown(v['value'], k, v['unit'])} {display_unit(k, v['unit'])}".rstrip()
+            + _interval_words(e.get("intervals", {}).get(k), k, v["unit"])
             for k, v in e.get("parameters", {}).items()
         )
         if e.get("failure"):

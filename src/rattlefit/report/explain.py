@@ -3,48 +3,45 @@ HTML report's parameter table; and the numbers as the table shows them."""
 
 from __future__ import annotations
 
-from ..inference.advice import base_name, film_lubrication
+from ..inference.advice import film_lubrication
 from ..inference.result import IDENTIFIED_RATIO, identified_ratio
-from .tables import DISPLAY
-
-#: What each fitted parameter is, in words.
-MEANING = {
-    "a": "oil-film half-length",
-    "drag_torque": "bearing drag torque on the driven gear",
-    "viscosity": "effective dynamic viscosity of the oil at the recording's temperature",
-    "stiffness_scale": "factor on the mesh stiffness",
-    "min_film": "adsorbed film thickness h_min below which the squeeze force saturates",
-    "backlash": "backlash on the pitch circle",
-    "squeeze_momentum": "momentum the squeeze film takes per approach of the flanks, per unit "
-    "of approach speed (∝ μ·a³/h_min² for a short film)",
-}
+from ..quantities import FILM, base_name, display, quantity
 
 
-def shown(value: float, unit: str) -> str:
-    """``value`` (SI, ``unit``) in the report's display unit, 4 significant digits, no unit."""
-    mult, _ = DISPLAY.get(unit, (1.0, unit))
-    return f"{value * mult:.4g}"
+def meaning(name: str) -> str:
+    """What parameter ``name`` is, in words, with its symbol (the registry's); empty for a
+    name it lacks."""
+    try:
+        q = quantity(name)
+    except KeyError:
+        return ""
+    return f"{q.meaning} ({q.symbol})"
 
 
-def display_unit(unit: str) -> str:
-    """The unit the report shows a parameter of SI ``unit`` in (mm for m)."""
-    return DISPLAY.get(unit, (1.0, unit))[1]
+def shown(value: float, name: str, unit: str | None = None) -> str:
+    """``value`` (SI) of parameter ``name`` in its display unit, 4 significant digits."""
+    return f"{value * display(name, unit)[0]:.4g}"
 
 
-def estimate_cells(p: dict) -> tuple[str, str]:
-    """``(estimate, 95 % interval)`` as the table shows a parameter entry of the fit JSON
+def display_unit(name: str, unit: str | None = None) -> str:
+    """The unit the report shows parameter ``name`` in (the registry's)."""
+    return display(name, unit)[1]
+
+
+def estimate_cells(name: str, p: dict) -> tuple[str, str]:
+    """``(estimate, 95 % interval)`` as the table shows parameter ``name``'s entry of the fit JSON
     (display units, :func:`shown`): the estimate always (the optimum; a file written before
     every parameter had one shows ``—``), a one-sided interval as ``≥ x`` or ``≤ x``."""
     unit = p["unit"]
     value = p.get("estimate")
     if value is None:
         value = p.get("map_value")
-    estimate = "—" if value is None else shown(value, unit)
+    estimate = "—" if value is None else shown(value, name, unit)
     if p["bound"] == "lower":
-        return estimate, f"≥ {shown(p['lower'], unit)}"
+        return estimate, f"≥ {shown(p['lower'], name, unit)}"
     if p["bound"] == "upper":
-        return estimate, f"≤ {shown(p['upper'], unit)}"
-    return estimate, f"[{shown(p['lower'], unit)}, {shown(p['upper'], unit)}]"
+        return estimate, f"≤ {shown(p['upper'], name, unit)}"
+    return estimate, f"[{shown(p['lower'], name, unit)}, {shown(p['upper'], name, unit)}]"
 
 
 def verdict_word(p: dict) -> str:
@@ -62,12 +59,12 @@ def verdict_word(p: dict) -> str:
 
 
 def _why_one_sided(base: str, lub: str | None, bound: str) -> str:
-    if base == "a" and bound == "lower" and lub == "oil_jet":
+    if base == FILM and bound == "lower" and lub == "oil_jet":
         return (
             "under oil jet the squeeze film saturates once a ≫ √(R·h), so any longer film "
             "fits as well; the data pin μ/√h_min instead."
         )
-    if base == "a" and bound == "upper":
+    if base == FILM and bound == "upper":
         return "the interval runs down to a = 0: dry flanks (no film) fit the data as well."
     if base == "drag_torque" and bound == "upper":
         return (

@@ -8,9 +8,8 @@ import warnings
 
 import numpy as np
 
-from .explain import display_unit
+from ..quantities import axis_label, display
 from .plots import draw_drive_cycle, draw_flanks, pyplot
-from .tables import DISPLAY
 
 #: Seconds of the recording's Δθ* shown as a time history.
 TIME_HISTORY_S = 0.3
@@ -73,6 +72,11 @@ def time_history(time_s, relative_motion_rad, backlash_rad: float, title: str) -
 
 
 def profiles(curves: dict, threshold: float | None, parameters: dict) -> bytes:
+    """:func:`profile_figure` as PNG."""
+    return png(profile_figure(curves, threshold, parameters))
+
+
+def profile_figure(curves: dict, threshold: float | None, parameters: dict):
     """Each free parameter's profile (Δcost above the optimum against its value in display
     units), the threshold that sets the 95 % interval as a dashed line, and the interval
     shaded. ``curves`` is the fit JSON's ``fit.profiles``."""
@@ -82,7 +86,7 @@ def profiles(curves: dict, threshold: float | None, parameters: dict) -> bytes:
         pts = np.asarray(curves[name], dtype=float).reshape(-1, 2)
         p = parameters.get(name, {})
         unit = p.get("unit", "1")
-        mult = DISPLAY.get(unit, (1.0, unit))[0]
+        mult = display(name, unit)[0]
         ax.plot(pts[:, 0] * mult, pts[:, 1], "o-", ms=3, color="C0")
         if threshold is not None:
             ax.axhline(threshold, color="C3", ls="--", lw=0.9, label="95 % threshold")
@@ -96,13 +100,12 @@ def profiles(curves: dict, threshold: float | None, parameters: dict) -> bytes:
             ax.set_xlim(max(x.min(), 1e-4 * x.max()) / 1.5, 1.5 * x.max())
         if threshold is not None and len(pts) and pts[:, 1].max() > 8 * threshold:
             ax.set_ylim(min(-0.05 * 8 * threshold, pts[:, 1].min()), 8 * threshold)
-        shown = display_unit(unit)
-        ax.set_xlabel(f"{name} ({shown})" if shown else name)
+        ax.set_xlabel(axis_label(name, unit))
         ax.set_ylabel("Δcost above the optimum")
         ax.legend(fontsize=7)
     fig.suptitle("profiles (shaded: the 95 % interval)", fontsize=10)
     fig.tight_layout()
-    return png(fig)
+    return fig
 
 
 def trace(idata) -> bytes:

@@ -11,6 +11,7 @@ from pathlib import Path
 from ..errors import RattlefitError
 from ..io.recording import Recording, read_recording
 from ..io.schema import MEMORY
+from ..quantities import FILM, base_name
 
 #: Fields each document must hold, as paths of keys: what the report reads.
 REQUIRED = {
@@ -59,12 +60,33 @@ def check(doc, kind: str, source: str | None = None) -> dict:
                     f"{where}: {field}: missing; not the output of rattlefit {writer} -o"
                 )
             node = node[key]
+    renamed(doc)
     if kind == "fit":
         for name, p in doc["parameters"].items():
             missing = [f for f in PARAMETER_FIELDS if not isinstance(p, dict) or f not in p]
             if missing:
                 raise RattlefitError(f"{where}: parameters/{name}/{missing[0]}: missing")
     return doc
+
+
+#: Parameter names of earlier versions, read as today's: ``a`` was the film half-length.
+OLD_NAMES = {"a": FILM}
+
+
+def new_name(name: str) -> str:
+    """Today's name of parameter ``name`` (``a[oil_jet]`` → ``film_half_length[oil_jet]``)."""
+    base = base_name(name)
+    return OLD_NAMES.get(base, base) + name[len(base) :]
+
+
+def renamed(doc: dict) -> None:
+    """Rename, in place, the parameter keys of a document written before the film
+    half-length was named ``film_half_length`` (``parameters`` and ``fit/profiles``)."""
+    tables = [doc.get("parameters"), doc.get("fit", {}).get("profiles")]
+    for table in tables:
+        if isinstance(table, dict):
+            for old in [k for k in table if new_name(k) != k]:
+                table[new_name(old)] = table.pop(old)
 
 
 def load_json(path: str | Path, kind: str) -> dict:

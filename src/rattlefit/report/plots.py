@@ -21,9 +21,9 @@ from ..inference.posterior import Posterior
 from ..inference.result import FitResult
 from ..inference.rig import setup
 from ..io.recording import Recording
+from ..quantities import axis_label, display
 from ..simulation.solve import absolute_tolerances, simulate
 from ..util import atomic_write
-from .tables import DISPLAY
 
 
 def pyplot():
@@ -143,12 +143,12 @@ def plot_posterior(
     given the recordings, a posterior predictive check of the band spectrum (8 draws)."""
     directory = Path(directory)
     names, p = post.names, len(post.names)
-    scale = [DISPLAY.get(u, (1.0, u)) for u in post.units]
+    scale = [display(n, u) for n, u in zip(names, post.units, strict=True)]
     fig, axes = pyplot().subplots(p, 1, figsize=(9, 1.6 * p), sharex=True, squeeze=False)
     for i, ax in enumerate(axes[:, 0]):
         ax.plot(post.chain[:, :, i] * scale[i][0], color="k", lw=0.4, alpha=0.35)
         ax.axvspan(0, post.discard, color="0.85", lw=0)
-        ax.set_ylabel(f"{names[i]}\n({scale[i][1]})" if scale[i][1] else names[i], fontsize=8)
+        ax.set_ylabel(axis_label(names[i], post.units[i]).replace(" (", "\n("), fontsize=8)
     axes[-1, 0].set_xlabel("step (shaded: burn-in, discarded)")
     out = [_save(fig, directory / "posterior_trace.png")]
     kept = post.kept * np.array([m for m, _ in scale])
@@ -168,11 +168,11 @@ def plot_posterior(
             else:
                 ax.hist2d(kept[:, j], kept[:, i], bins=40, cmap="Blues")
             if i == p - 1:
-                ax.set_xlabel(names[j], fontsize=8)
+                ax.set_xlabel(axis_label(names[j], post.units[j]), fontsize=8)
             else:
                 ax.set_xticklabels([])
             if j == 0 and i > 0:
-                ax.set_ylabel(names[i], fontsize=8)
+                ax.set_ylabel(axis_label(names[i], post.units[i]), fontsize=8)
             ax.tick_params(labelsize=6)
     fig.suptitle("posterior: pairwise marginals (dotted: 95 % credible interval)")
     out.append(_save(fig, directory / "posterior_pairs.png"))

@@ -9,14 +9,11 @@ from ..diagnosis.result import MISSED_Z, Diagnosis
 from ..inference.posterior import Posterior
 from ..inference.profile import CHI2_1_95
 from ..inference.result import FitResult, identified_ratio
-
-#: Display units of the parameters: (SI multiplier, label).
-DISPLAY = {"m": (1e3, "mm"), "N m": (1.0, "N m"), "Pa s": (1.0, "Pa s"), "1": (1.0, "")}
-
+from ..quantities import FILM, display
 
 #: The parameters the table shows first: the films, the drag torque, the viscosity and the
 #: squeeze momenta; the nuisances follow in a block of their own.
-PHYSICAL = ("a", "drag_torque", "viscosity", "squeeze_momentum")
+PHYSICAL = (FILM, "drag_torque", "viscosity", "squeeze_momentum")
 
 
 def is_physical(name: str) -> bool:
@@ -34,7 +31,7 @@ def format_table(result: FitResult) -> str:
         p = result.parameters[name]
         if k and not is_physical(name) and is_physical(names[k - 1]):
             rows.append(("nuisances:", "", "", "", ""))
-        mult, unit = DISPLAY.get(p.unit, (1.0, p.unit))
+        mult, unit = display(name, p.unit)
         est = f"{p.estimate * mult:.4g}"
         ci = f"[{p.lower * mult:.4g}, {p.upper * mult:.4g}]"
         if p.identified:
@@ -132,7 +129,7 @@ def format_posterior(post: Posterior) -> str:
     for (name, (med, lo, hi)), unit, ess, tau in zip(
         post.intervals().items(), post.units, post.ess, post.autocorr_time, strict=True
     ):
-        mult, shown = DISPLAY.get(unit, (1.0, unit))
+        mult, shown = display(name, unit)
         rows.append(
             (
                 name,
@@ -161,18 +158,18 @@ def format_posterior(post: Posterior) -> str:
     return "\n".join(lines)
 
 
-def _si(value: float, unit: str) -> str:
-    mult, shown = DISPLAY.get(unit, (1.0, unit))
+def _si(value: float, name: str, unit: str) -> str:
+    mult, shown = display(name, unit)
     return f"{value * mult:.3g} {shown}".rstrip()
 
 
 def _size_cell(o, key: str) -> str:
     """One fitted field of outcome ``o`` with its unit, and its interval where it has one."""
     unit = o.units[key]
-    text = f"{key} {_si(o.values[key], unit)}"
+    text = f"{key} {_si(o.values[key], key, unit)}"
     if key in o.intervals:
         lo, hi = o.intervals[key]
-        text += f" [{_si(lo, unit)} – {_si(hi, unit)}]"
+        text += f" [{_si(lo, key, unit)} – {_si(hi, key, unit)}]"
     return text
 
 
@@ -276,7 +273,7 @@ def suggestion_table(plan: dict) -> list[tuple[str, ...]]:
     (:func:`~rattlefit.inference.design.plan_document`): each candidate's predicted 95 %
     factor of each film half-length, the drag torque and the viscosity; "—" unbounded."""
     rows = plan["candidates"]
-    cols = [*(k for k in rows[0]["factors"] if k.startswith("a[")), *PLANNED_COLUMNS]
+    cols = [*(k for k in rows[0]["factors"] if k.startswith(f"{FILM}[")), *PLANNED_COLUMNS]
     table = [("with one more recording", *(c.replace("_scale", "") for c in cols))]
     for r in rows:
         factors = [r["factors"].get(c) for c in cols]
