@@ -507,7 +507,9 @@ def test_a_fit_across_lubrications_gives_each_its_film_and_shares_the_oil(
     assert np.all(starts[:, 3:] == starts[0, 3:])
     # a prior on the single-lubrication name would replace nothing here: refused, not ignored
     film = ParameterSpec("film_half_length", "m", 1e-5, 1e-3)
-    with pytest.raises(rf.RattlefitError, match="'a' is not a parameter of this fit"):
+    with pytest.raises(
+        rf.RattlefitError, match="'film_half_length' is not a parameter of this fit"
+    ):
         _problem(recs, FitOptions.quick(priors={"film_half_length": film}))
 
 

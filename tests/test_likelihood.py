@@ -218,7 +218,13 @@ def test_the_learned_likelihood_is_checked_against_fresh_simulations(learned_fit
     _, result, _ = learned_fit
     checks = result.likelihood["check"]
     labels = {c["label"] for c in checks}
-    assert {"optimum", "drag_torque lower", "drag_torque upper", "a lower", "a upper"} <= labels
+    assert {
+        "optimum",
+        "drag_torque lower",
+        "drag_torque upper",
+        "film_half_length lower",
+        "film_half_length upper",
+    } <= labels
     for c in checks:
         assert np.isfinite(c["mean_error"]) and c["mean_error"] >= 0
         # fresh simulations scatter around the learned mean as the learned spread says, to
@@ -276,6 +282,7 @@ TINY = dict(
     learning_rounds=1,
     learning_per_round=32,
     check_realisations=2,
+    learning_refinements=0,
 )
 #: One identification on the learned likelihood, printed as JSON, in a process with N devices,
 #: on one core when told ("1") or on every core the test may use ("all").

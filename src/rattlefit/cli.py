@@ -211,7 +211,13 @@ def info(file: Path, as_json: bool) -> None:
     help="TOML channel map: the encoder channels, counts per revolution, sample rate, gear "
     "pair, operating point and oil (docs/recording-format.md).",
 )
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="The recording to write (HDF5, recording format v1).",
+)
 @_clean_errors
 def import_(source: Path, channel_map: Path, output: Path) -> None:
     """Turn a rig file (LabView TDMS or CSV) into a recording (HDF5 format v1)."""
@@ -244,6 +250,7 @@ def import_(source: Path, channel_map: Path, output: Path) -> None:
     type=click.Choice(["dry", "boundary", "oil_jet"]),
     default="boundary",
     show_default=True,
+    help="How the flanks are lubricated.",
 )
 @click.option(
     "--oil-temperature-c",
@@ -299,7 +306,13 @@ def import_(source: Path, channel_map: Path, output: Path) -> None:
 )
 @click.option("--duration", type=float, default=3.0, show_default=True, help="Length, s.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seeds the simulation.")
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False, path_type=Path),
+    required=True,
+    help="The recording to write (HDF5, with its truth).",
+)
 @_clean_errors
 def simulate(**o) -> None:
     """Write a synthetic recording with known parameters (stored in its /truth group)."""
@@ -380,7 +393,12 @@ def simulate(**o) -> None:
     "with --quick]",
 )
 @click.option(
-    "--drive", type=click.Choice(["measured", "commanded"]), default="measured", show_default=True
+    "--drive",
+    type=click.Choice(["measured", "commanded"]),
+    default="measured",
+    show_default=True,
+    help="Drive the model with the driving encoder's measured speed, or with eq. (9)'s "
+    "commanded sine.",
 )
 @click.option(
     "--features",
@@ -470,8 +488,16 @@ def identify(
     help="HDF5 file the chain is saved to as it runs; if it holds a chain of these files, "
     "that chain is continued (no refit).",
 )
-@click.option("--steps", type=click.IntRange(min=2), default=300, show_default=True)
-@click.option("--walkers", type=click.IntRange(min=2), default=16, show_default=True)
+@click.option(
+    "--steps",
+    type=click.IntRange(min=2),
+    default=300,
+    show_default=True,
+    help="Steps of the chain (more continue a --backend chain).",
+)
+@click.option(
+    "--walkers", type=click.IntRange(min=2), default=16, show_default=True, help="emcee walkers."
+)
 @click.option(
     "--discard",
     type=click.IntRange(min=0),
@@ -702,7 +728,13 @@ def diagnose(
     help="The fitted recordings, in the fit's order (repeatable) [default: the paths the fit "
     "names, also looked for beside --fit].",
 )
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="The HTML report to write.",
+)
 @_clean_errors
 def report(fit_file, posterior_file, netcdf, diagnosis_file, recording_files, output) -> None:
     """Write one self-contained HTML report (figures inside, nothing fetched) of an

@@ -73,7 +73,7 @@ QUANTITIES = {
             "N s",
             "N s",
             1.0,
-            "momentum the squeeze film takes from one approach of the flanks, per unit of "
+            "momentum the squeeze film takes from one approach of the flanks, whatever the "
             "approach speed (∝ μ·a³/h_min² for a short film)",
         ),
     )

@@ -1,7 +1,7 @@
 """The squeeze-film group: what a boundary recording pins of the oil film.
 
 The spectrum sees how much momentum the squeeze film takes from each approach of the flanks,
-``M = ∫_{h_min}^∞ S(h) dh`` per unit of approach speed (N s;
+``M = ∫_{h_min}^∞ S(h) dh`` (N s, the squeeze force's impulse, whatever the approach speed;
 :func:`~rattlefit.physics.model.squeeze_momentum`), far better than ``a``, the viscosity or
 ``h_min`` apart. For a short film M = 4 μ Z a³/h_min², the group μ a³/h_min²; for a long
 one, saturated in ``a``, it is ``3π μ Z R^{3/2}/√h_min``, and the fit's valley of long films

@@ -216,11 +216,6 @@ def fit_and_check(problem: Problem, learned: Learned, options: FitOptions, seed,
     return fit, checks
 
 
-#: Rounds of simulations added, at most, where the check finds the learned likelihood missing
-#: the simulator (each followed by a new fit and check).
-REFINEMENTS = 2
-
-
 def refine(problem: Problem, learned: Learned, options: FitOptions, seeds, say):
     """``learned`` with one more posterior round of simulations on top of its design, and
     that round's record."""
@@ -247,19 +242,19 @@ def identify_learned(
     """:func:`~rattlefit.inference.identify.identify` on the learned likelihood (module
     docstring). Every random draw descends from ``options.seed``. Where the check fails at the
     optimum or an interval end, the likelihood (learned here or reused) gets one more round of
-    simulations drawn from its posterior and the fit is repeated, up to :data:`REFINEMENTS`
-    times."""
+    simulations drawn from its posterior and the fit is repeated, up to
+    ``options.likelihood.refinements`` times."""
     t_start = time.perf_counter()
     say = stamped(progress, t_start)
     platform = platform_info()
     problem, rigs, _ = problem_from(recordings, options)
     say(f"{len(rigs)} recording(s), {len(problem.specs)} parameters (seed {options.seed})")
     s_learn, s_check, s_more = np.random.SeedSequence(options.seed).spawn(3)
-    s_more = iter(s_more.spawn(REFINEMENTS))
+    s_more = iter(s_more.spawn(options.likelihood.refinements))
     learned, info = learn_or_reuse(problem, options, s_learn, say)
     fit, checks = fit_and_check(problem, learned, options, s_check, say)
     lubrications = [r.recording.operating.lubrication for r in rigs]
-    for _ in range(REFINEMENTS):
+    for _ in range(options.likelihood.refinements):
         if all(c.passed for c in checks):
             break
         say("one more round of simulations where the learned likelihood misses …")

@@ -249,6 +249,8 @@ class LikelihoodOptions:
     per_round : simulations per recording in each further round. Default 512.
     check_realisations : simulations at the optimum and at each interval end that check the
         learned likelihood against the simulator. Default 24.
+    refinements : at most this many further rounds, each followed by a new fit and check,
+        while the check fails. Default 2.
     reuse : a stored learned likelihood of this test point (a file written by
         :func:`~rattlefit.likelihood.store.write_learned`, e.g. ``identify -o``'s
         ``*.likelihood.h5``) to start from instead of learning: only where its check against
@@ -260,6 +262,7 @@ class LikelihoodOptions:
     rounds: int = 3
     per_round: int = 512
     check_realisations: int = 24
+    refinements: int = 2
     reuse: str | None = None
 
     def __post_init__(self):
@@ -268,6 +271,10 @@ class LikelihoodOptions:
         _check(self.rounds >= 0, f"FitOptions.learning_rounds must be ≥ 0, got {self.rounds}")
         _check(
             self.per_round >= 1, f"FitOptions.learning_per_round must be ≥ 1, got {self.per_round}"
+        )
+        _check(
+            self.refinements >= 0,
+            f"FitOptions.learning_refinements must be ≥ 0, got {self.refinements}",
         )
         _check(
             self.check_realisations >= 2,
@@ -313,6 +320,7 @@ FLAT_FIELDS: dict[str, tuple[str, str]] = {
     "learning_rounds": ("likelihood", "rounds"),
     "learning_per_round": ("likelihood", "per_round"),
     "check_realisations": ("likelihood", "check_realisations"),
+    "learning_refinements": ("likelihood", "refinements"),
     "reuse_likelihood": ("likelihood", "reuse"),
     "priors": ("", "priors"),
 }

@@ -55,7 +55,7 @@ from .forward import evaluate
 from .identify import identify
 from .noise import NoiseModel
 from .options import FitOptions
-from .parameters import ParameterSpec
+from .parameters import Z_END, ParameterSpec
 from .problem import problem_from
 from .result import FitResult
 
@@ -442,8 +442,9 @@ def run_chain(
     """Run (or continue) emcee's ensemble sampler on ``log_prob`` to ``n_steps`` in all.
 
     ``log_prob`` follows emcee's ``vectorize=True`` contract. A fresh chain starts its walkers
-    at ``z`` plus ``init_scale`` times a draw from ``covariance_z`` (each coordinate's standard
-    deviation capped at 4, each offset clipped to ±2), both the draw and emcee's moves seeded
+    at ``z`` (clipped to ±:data:`~rattlefit.inference.parameters.Z_END`) plus ``init_scale``
+    times a draw from ``covariance_z`` (each coordinate's standard deviation capped at 4, each
+    offset clipped to ±2), both the draw and emcee's moves seeded
     by ``seed``. A ``backend`` that already holds steps is continued from its last state and
     random state, with its own number of walkers.
     """
@@ -466,7 +467,8 @@ def run_chain(
         corr = cov / np.outer(np.maximum(sd, 1e-300), np.maximum(sd, 1e-300))
         chol = np.linalg.cholesky(corr + 1e-9 * np.eye(n_dim))
         draws = rng.standard_normal((n_walkers, n_dim)) @ chol.T * np.minimum(sd, 4.0)
-        initial = z + np.clip(init_scale * draws, -2.0, 2.0)
+        # an optimum at a range's end can lie beyond the prior's support in z: start inside
+        initial = np.clip(z, -Z_END, Z_END) + np.clip(init_scale * draws, -2.0, 2.0)
         sampler.random_state = np.random.RandomState(seed).get_state()
     else:
         initial = sampler.get_last_sample()

@@ -253,8 +253,9 @@ def film_saturation(y):
 
 
 def squeeze_momentum(a, viscosity, min_film, radius, width):
-    """The momentum the squeeze film takes from one approach of the flanks, per unit of
-    approach speed: ``M = ∫_{h_min}^∞ S(h) dh`` (N s) of eq. (5)'s coefficient S.
+    """The momentum the squeeze film takes from one approach of the flanks down to h_min:
+    ``M = ∫_{h_min}^∞ S(h) dh`` (N s) of eq. (5)'s coefficient S, the impulse ``∫ F dt`` of
+    the squeeze force ``F = S(h) ḣ`` whatever the approach speed.
 
     In closed form ``M = 6 μ Z R^{3/2} h_min^{-1/2} ψ(a/√(R h_min))``
     (:func:`film_saturation`): ``M → 4 μ Z a³/h_min²`` for a short film and

@@ -9,12 +9,10 @@ import warnings
 import numpy as np
 
 from ..quantities import axis_label, display
-from .plots import draw_drive_cycle, draw_flanks, pyplot
+from .plots import DPI, SPREAD_LABEL, centred, draw_drive_cycle, draw_flanks, pyplot
 
 #: Seconds of the recording's Δθ* shown as a time history.
 TIME_HISTORY_S = 0.3
-#: Resolution of the embedded figures, dots per inch.
-DPI = 90
 
 
 def png(fig) -> bytes:
@@ -40,7 +38,7 @@ def spectrum(spectra: dict, k: int, title: str) -> bytes:
         color="C0",
         alpha=0.2,
         lw=0,
-        label="model ±2σ (run-to-run spread)",
+        label=SPREAD_LABEL,
     )
     ax.plot(centres, 10**fitted, "-", color="C0", lw=1.2, label="fitted model (mean)")
     ax.plot(centres, 10**measured, "o", ms=4, color="k", label="measured")
@@ -55,18 +53,17 @@ def spectrum(spectra: dict, k: int, title: str) -> bytes:
 
 
 def time_history(time_s, relative_motion_rad, backlash_rad: float, title: str) -> bytes:
-    """The first :data:`TIME_HISTORY_S` s of the measured Δθ* (mrad), with the backlash's
-    extent around the motion's middle as dotted lines."""
+    """The first :data:`TIME_HISTORY_S` s of the measured Δθ* (mrad) about the middle of its
+    range (:func:`~rattlefit.report.plots.centred`), the backlash's extent as dotted lines."""
     t = np.asarray(time_s, dtype=float)
-    x = np.asarray(relative_motion_rad, dtype=float)
+    x = centred(relative_motion_rad)
     n = int(np.searchsorted(t, t[0] + TIME_HISTORY_S))
     fig, ax = pyplot().subplots(figsize=(8, 2.8))
     ax.plot(t[:n], x[:n] * 1e3, color="k", lw=0.7)
-    mid = 0.5 * (x.max() + x.min()) * 1e3
     for s in (-0.5, 0.5):
-        ax.axhline(mid + s * backlash_rad * 1e3, color="0.5", ls=":", lw=0.8)
+        ax.axhline(s * backlash_rad * 1e3, color="0.5", ls=":", lw=0.8)
     ax.set_xlabel("time (s)")
-    ax.set_ylabel("Δθ* (mrad)")
+    ax.set_ylabel("Δθ* about its middle (mrad)")
     ax.set_title(f"{title}: measured relative motion (dotted: backlash)", fontsize=10)
     return png(fig)
 
@@ -78,8 +75,12 @@ def profiles(curves: dict, threshold: float | None, parameters: dict) -> bytes:
 
 def profile_figure(curves: dict, threshold: float | None, parameters: dict):
     """Each free parameter's profile (Δcost above the optimum against its value in display
-    units), the threshold that sets the 95 % interval as a dashed line, and the interval
-    shaded. ``curves`` is the fit JSON's ``fit.profiles``."""
+    units): every point, the estimate as a vertical line, the threshold that sets the 95 %
+    interval as a dashed line and the interval shaded. Δcost is drawn linear up to the
+    threshold and logarithmic beyond, so that far points stay on the axes without squashing
+    the interval. ``curves`` is the fit JSON's ``fit.profiles``."""
+    from matplotlib.ticker import NullFormatter
+
     names = list(curves)
     fig, axes = pyplot().subplots(1, len(names), figsize=(4.2 * len(names), 3.2), squeeze=False)
     for ax, name in zip(axes[0], names, strict=True):
@@ -87,24 +88,24 @@ def profile_figure(curves: dict, threshold: float | None, parameters: dict):
         p = parameters.get(name, {})
         unit = p.get("unit", "1")
         mult = display(name, unit)[0]
-        ax.plot(pts[:, 0] * mult, pts[:, 1], "o-", ms=3, color="C0")
+        ax.plot(pts[:, 0] * mult, pts[:, 1], "o-", ms=3, color="C0", label="profile")
         if threshold is not None:
             ax.axhline(threshold, color="C3", ls="--", lw=0.9, label="95 % threshold")
+            ax.set_yscale("symlog", linthresh=threshold, linscale=2)
         if p:
             ax.axvspan(p["lower"] * mult, p["upper"] * mult, color="C2", alpha=0.12, lw=0)
+        if p.get("estimate") is not None:
+            ax.axvline(p["estimate"] * mult, color="k", lw=0.9, label="estimate")
         x = pts[:, 0] * mult
         if len(x) and x.min() > 0 and x.max() > 3 * x.min():
-            # the bottom of a free parameter's range stands for zero: the axis starts at 1e-4
-            # of its largest value rather than spanning decades of nothing
             ax.set_xscale("log")
-            ax.set_xlim(max(x.min(), 1e-4 * x.max()) / 1.5, 1.5 * x.max())
-        if threshold is not None and len(pts) and pts[:, 1].max() > 8 * threshold:
-            ax.set_ylim(min(-0.05 * 8 * threshold, pts[:, 1].min()), 8 * threshold)
+            ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_xlabel(axis_label(name, unit))
         ax.set_ylabel("Δcost above the optimum")
-        ax.legend(fontsize=7)
     fig.suptitle("profiles (shaded: the 95 % interval)", fontsize=10)
     fig.tight_layout()
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=4, fontsize=8)
     return fig
 
 

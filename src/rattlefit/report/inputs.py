@@ -84,9 +84,10 @@ def renamed(doc: dict) -> None:
     half-length was named ``film_half_length`` (``parameters`` and ``fit/profiles``)."""
     tables = [doc.get("parameters"), doc.get("fit", {}).get("profiles")]
     for table in tables:
-        if isinstance(table, dict):
-            for old in [k for k in table if new_name(k) != k]:
-                table[new_name(old)] = table.pop(old)
+        if isinstance(table, dict) and any(new_name(k) != k for k in table):
+            items = list(table.items())  # renamed in place, in their order
+            table.clear()
+            table.update((new_name(k), v) for k, v in items)
 
 
 def load_json(path: str | Path, kind: str) -> dict:

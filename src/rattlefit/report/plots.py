@@ -40,9 +40,22 @@ def pyplot():
     return plt
 
 
+#: Resolution of every PNG figure, dots per inch (sharp in print).
+DPI = 150
+#: The one label of the model's ±2σ band, wherever it is drawn.
+SPREAD_LABEL = "model ±2σ (run-to-run spread)"
+
+
+def centred(x):
+    """Δθ* about the middle of its range, the one offset convention of every time history
+    (the flanks then sit at ± half the backlash, measured or simulated alike)."""
+    x = np.asarray(x, dtype=float)
+    return x - 0.5 * (x.max() + x.min())
+
+
 def _save(fig, path: Path) -> Path:
     def write(tmp: Path) -> None:
-        fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight")
+        fig.savefig(tmp, format="png", dpi=DPI, bbox_inches="tight")
 
     atomic_write(path, write)
     pyplot().close(fig)
@@ -81,24 +94,19 @@ def plot_fit(result: FitResult, recordings: list[Recording], directory: str | Pa
         )
         c = result.band_centers
         err = 2 * np.asarray(result.bands_of(result.sigma[k]))
-        measured_bands = 10 ** np.asarray(result.bands_of(result.measured_features[k]))
-        ax1.errorbar(
+        fitted = np.asarray(result.bands_of(result.fitted_features[k]))
+        ax1.fill_between(
             c,
-            measured_bands,
-            yerr=[measured_bands * (1 - 10**-err), measured_bands * (10**err - 1)],
-            fmt="o",
-            ms=3,
-            color="k",
-            label="measured bands ±2σ",
-        )
-        ax1.plot(
-            c,
-            10 ** np.asarray(result.bands_of(result.fitted_features[k])),
-            "s-",
-            ms=3,
+            10 ** (fitted - err),
+            10 ** (fitted + err),
             color="C0",
-            label="fitted mean of realisations",
+            alpha=0.2,
+            lw=0,
+            label=SPREAD_LABEL,
         )
+        ax1.plot(c, 10**fitted, "s-", ms=3, color="C0", label="fitted model (mean)")
+        measured_bands = 10 ** np.asarray(result.bands_of(result.measured_features[k]))
+        ax1.plot(c, measured_bands, "o", ms=4, color="k", label="measured bands")
         ax1.axhline(
             rig.noise_floor, color="0.3", ls=":", lw=0.8, label="encoder quantisation floor"
         )
@@ -108,19 +116,18 @@ def plot_fit(result: FitResult, recordings: list[Recording], directory: str | Pa
         ax1.legend(fontsize=8)
         t = rec.time
         n = min(len(t), int(0.5 * rec.sample_rate_hz))
-        ax2.plot(t[:n], rec.relative_motion[:n] * 1e3, color="k", lw=0.8, label="measured")
-        sim = np.asarray(sol.relative_motion)
+        ax2.plot(t[:n], centred(rec.relative_motion)[:n] * 1e3, color="k", lw=0.8, label="measured")
         ax2.plot(
             t[:n],
-            (sim[:n] - np.median(sim)) * 1e3,
+            centred(sol.relative_motion)[:n] * 1e3,
             color="C1",
             lw=0.8,
             alpha=0.8,
-            label="fitted model (one realisation: rattle is chaotic, compare character, not phase)",
+            label="fitted model (one realisation: compare character, not phase)",
         )
         ax2.set_xlabel("time (s)")
-        ax2.set_ylabel("Δθ* (mrad)")
-        ax2.legend(fontsize=8, loc="lower right")
+        ax2.set_ylabel("Δθ* about the middle of its range (mrad)")
+        ax2.legend(fontsize=8, loc="lower left", bbox_to_anchor=(0, 1.0), ncol=2, frameon=False)
         out.append(_save(fig, directory / f"fit_{k}_{Path(rec.path or 'recording').stem}.png"))
     names = result.names
     fig, ax = pyplot().subplots(figsize=(1.0 + 0.6 * len(names), 0.8 + 0.6 * len(names)))
@@ -238,7 +245,7 @@ def draw_drive_cycle(cycle: dict, names: Sequence[str]):
         for s, name in enumerate(cycle["statistics"]):
             ax = axes[k, s]
             lo, hi = model[k, s] - 2 * sd[k, s], model[k, s] + 2 * sd[k, s]
-            ax.fill_between(phases, lo, hi, color="0.88", lw=0, label="model ± 2σ")
+            ax.fill_between(phases, lo, hi, color="0.88", lw=0, label=SPREAD_LABEL)
             ax.plot(phases, model[k, s], "-", color="C0", lw=1, label="model")
             ax.plot(phases, measured[k, s], "ko", ms=3, label="recording")
             out = np.abs(measured[k, s] - model[k, s]) / sd[k, s] > cycle["threshold"]

@@ -74,7 +74,7 @@ def summary_rows(summary: dict) -> list[tuple[str, str]]:
         ),
         (
             "drive",
-            f"Ω = {o['drive_mean_speed_rad_s']:g} rad/s ± {o['drive_speed_amplitude_rad_s']:g} "
+            f"Ω = {o['drive_mean_speed_rad_s']:g} ± {o['drive_speed_amplitude_rad_s']:g} rad/s "
             f"at {o['drive_frequency_hz']:g} Hz (measured mean "
             f"{o['measured_mean_speed_rad_s']:.3f} rad/s)",
         ),
