@@ -67,6 +67,15 @@ def test_table_warns_only_about_a_poor_fit():
     assert "√(χ²/dof) = 2.1" in text
 
 
+def test_the_table_states_the_search_state_and_p():
+    # p from the χ² tail in closed form (two dof: exp(−χ²/2)); the stop as the search ended
+    done = format_table(dataclasses.replace(_result(3.0, 2), dof=2))
+    assert f"p = {math.exp(-1.5):.2g}" in done and "converged after 3 steps" in done
+    stopped = format_table(dataclasses.replace(_result(3.0, 2), success=False))
+    assert "stopped at its step limit after 3 steps" in stopped
+    assert "converged" not in stopped
+
+
 def test_the_table_shows_the_physics_first_and_a_measured_nuisance_as_measured():
     res = _result(30.0, 28)
     params = {
