@@ -74,6 +74,11 @@ def test_the_table_states_the_search_state_and_p():
     stopped = format_table(dataclasses.replace(_result(3.0, 2), success=False))
     assert "stopped at its step limit after 3 steps" in stopped
     assert "converged" not in stopped
+    assert "below the optimum" not in done
+    low = {"drag_torque": [(0.01, 5.0), (0.02, 0.0), (0.03, -14.2)]}
+    assert "the profiles reach 14.2 below the optimum's cost" in format_table(
+        dataclasses.replace(_result(3.0, 2), profiles=low)
+    )
 
 
 def test_the_table_shows_the_physics_first_and_a_measured_nuisance_as_measured():

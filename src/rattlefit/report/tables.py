@@ -70,6 +70,7 @@ def format_table(result: FitResult) -> str:
     )
     if "threshold" in result.profile:
         lines.append(_profile_line(result.profile))
+    lines += below_optimum(result.profiles)
     lines += advice
     for k, share in enumerate(result.regime_share):
         if share < 0.5:
@@ -121,6 +122,24 @@ def _profile_line(profile: dict) -> str:
         f"95 % intervals: where the profile cost is within {profile['threshold']:.1f} of the "
         f"optimum's (χ²₁ {CHI2_1_95:.2f} + 1.645 × {sd:.1f}, {source})"
     )
+
+
+#: A profile point this far below the optimum's cost is reported: the optimum was not the
+#: lowest point the profiles found.
+BELOW_OPTIMUM = 0.5
+
+
+def below_optimum(profiles: dict) -> list[str]:
+    """A line saying how far the profiles reach below the optimum's cost, when some point is
+    more than :data:`BELOW_OPTIMUM` below it; else none."""
+    lows = [(min(d for _, d in pts), name) for name, pts in profiles.items() if len(pts)]
+    if not lows or min(lows)[0] >= -BELOW_OPTIMUM:
+        return []
+    low, name = min(lows)
+    return [
+        f"note: the profiles reach {-low:.1f} below the optimum's cost ({name}'s lowest): the "
+        "optimum is not the lowest point found, and the intervals about it are rough"
+    ]
 
 
 def format_posterior(post: Posterior) -> str:
