@@ -3,7 +3,7 @@
 For a seeded sample of (pair, lubrication, centre distance, fluctuation, frequency), this
 simulates a recording with known truth (`rattlefit.simulation.synthetic.synthesize`),
 identifies it with the default `FitOptions`, and reports whether each 95 % interval holds the
-truth and whether the fit called `a` identified. Issue 3's check: truth inside the interval in
+truth and whether the fit called `a` identified. The check: truth inside the interval in
 ≥ 90 % of cases, and `a` within 20 % where reported identified.
 
     python benchmarks/coverage.py [--cases 10] [--seed 0] [--json out.json] [--only K ...]

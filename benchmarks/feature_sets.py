@@ -1,4 +1,4 @@
-"""Coverage and interval widths over the coverage grid, per feature set (issue 43's width
+"""Coverage and interval widths over the coverage grid, per feature set (the width
 study): `benchmarks/coverage.py` run once with each `FitOptions.features`, on the same seeded
 cases, and each parameter's median log width per lubrication compared.
 

@@ -9,7 +9,7 @@ by the bands and the drive-cycle-folded statistics, and by those with h_min know
 approach, ``squeeze_momentum`` (N s); its truth takes the paper's h_min (2 µm), which both
 simulators use, and pair II's flanks.
 
-Issue 43's checks here: the T_b interval two-sided and at most a factor of 2 wide; the group's
+The checks here: the T_b interval two-sided and at most a factor of 2 wide; the group's
 interval at least 3× narrower, in log, than the band PSDs alone give; with h_min known to 10 %,
 ``a`` two-sided and at most a factor of 2 wide.
 
@@ -104,7 +104,7 @@ def phrase(params: dict) -> str:
 
 
 def checks(rows: list[dict]) -> dict:
-    """Issue 43's three checks per file (None where a row is missing)."""
+    """The three width checks per file (None where a row is missing)."""
     by = {(r["file"], r["variant"]): r["parameters"] for r in rows}
     out = {}
     for label in FILES:

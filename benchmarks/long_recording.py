@@ -7,7 +7,7 @@ file and a 30 s one simulated with seed 7). Every identification is a plain
 ``rattlefit identify FILE [--features F] -o OUT`` with the default options (seed 0); this script
 runs them (or, with ``--from DIR``, reads the OUT files already in DIR, named
 ``<label>_<duration>_<features>.json``) and reports each parameter's log width (a one-sided
-bound runs to the end of the range), the ratio of the 3 s width to the 30 s one (issue 43
+bound runs to the end of the range), the ratio of the 3 s width to the 30 s one (the width check
 asks for ≥ 2), whether the truth is inside, and the wall times.
 
     python benchmarks/long_recording.py [--from DIR] [--features bands,bands+folded]

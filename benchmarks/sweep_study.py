@@ -1,7 +1,7 @@
 """Does a joint fit of a backlash sweep tighten the intervals? A study over seeded sweeps.
 
-Issue 3 asks that a joint fit of a backlash sweep (one gear pair, one lubrication, several
-centre distances: the paper's Figs. 10–12) tighten the intervals compared with the single
+Whether a joint fit of a backlash sweep (one gear pair, one lubrication, several
+centre distances: the paper's Figs. 10–12) tightens the intervals compared with the single
 recordings. One sweep answers that for one realisation only: rattle is chaotic, the cost is
 rough at the scale of a few per cent of a parameter, and which way one comparison falls
 changes with the realisation (benchmarks/README, "The joint sweep's tightening over many
