@@ -578,3 +578,19 @@ def test_every_name_and_unit_comes_from_the_one_registry(tmp_path):
             prior_name, spec = parse_prior(f"{name}={q.shown(p['estimate']):.6g}{typed}:0.2")
             assert prior_name == name and spec.unit == p["unit"]
             assert spec.center == pytest.approx(p["estimate"], rel=1e-5)
+
+
+def test_a_result_written_with_the_old_film_name_is_read_with_the_new_one():
+    from rattlefit.report.inputs import renamed
+
+    old = {
+        "parameters": {"a[boundary]": {"unit": "m"}, "drag_torque": {"unit": "N m"}, "a": {}},
+        "fit": {"profiles": {"a[boundary]": [[1e-4, 0.0]]}},
+    }
+    renamed(old)  # in place, in order, as check() and load_json() do on every document
+    assert list(old["parameters"]) == [
+        "film_half_length[boundary]",
+        "drag_torque",
+        "film_half_length",
+    ]
+    assert list(old["fit"]["profiles"]) == ["film_half_length[boundary]"]
