@@ -113,6 +113,19 @@ def _prior_option(func):
     )(func)
 
 
+def _quick_start_option(func):
+    """``--quick`` (``--quick-fit``, its old name) of the commands that start from an
+    identification."""
+    return click.option(
+        "--quick",
+        "--quick-fit",
+        "quick_fit",
+        is_flag=True,
+        help="Start from a quick identification (as identify --quick; --quick-fit is the old "
+        "name).",
+    )(func)
+
+
 def _likelihood_options(func):
     """``--likelihood`` and ``--reuse-likelihood`` (FitOptions.likelihood)."""
     func = click.option(
@@ -505,13 +518,7 @@ def identify(
     help="Steps discarded as the chain's warm-up (burn-in) [default: a third of --steps].",
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="Seeds the fit and chain.")
-@click.option(
-    "--quick",
-    "--quick-fit",
-    "quick_fit",
-    is_flag=True,
-    help="Start from a quick identification (as identify --quick; --quick-fit is the old name).",
-)
+@_quick_start_option
 @_likelihood_options
 @_output_options(
     "the credible intervals and diagnostics", "the trace, pairwise-marginal and predictive plots"
@@ -617,13 +624,7 @@ def sample(
     help="Comma-separated effects to try [default: all of rattlefit.physics.effects.EFFECTS].",
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="Seeds the fit and tries.")
-@click.option(
-    "--quick",
-    "--quick-fit",
-    "quick_fit",
-    is_flag=True,
-    help="Start from a quick identification (as identify --quick; --quick-fit is the old name).",
-)
+@_quick_start_option
 @click.option(
     "--iterations",
     type=click.IntRange(min=0),

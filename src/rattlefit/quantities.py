@@ -30,6 +30,11 @@ class Quantity:
         """``value`` (SI) in the display unit."""
         return value * self.scale
 
+    @property
+    def typed_unit(self) -> str:
+        """The display unit as typed on a command line (``um`` for µm)."""
+        return self.display_unit.replace("µ", "u")
+
     def label(self) -> str:
         """An axis label: symbol and display unit, e.g. ``a (mm)``."""
         return f"{self.symbol} ({self.display_unit})" if self.display_unit else self.symbol
@@ -126,11 +131,3 @@ def axis_label(name: str, unit: str | None = None) -> str:
     them, e.g. ``film_half_length (mm)``."""
     shown = display(name, unit)[1]
     return f"{name} ({shown})" if shown else name
-
-
-def option_name(name: str) -> str:
-    """The command-line option of a quantity given in its display unit:
-    ``film_half_length`` → ``--film-half-length-mm``, ``drag_torque`` → ``--drag-torque``."""
-    q = quantity(name)
-    suffix = {"mm": "-mm", "µm": "-um"}.get(q.display_unit, "")
-    return "--" + q.name.replace("_", "-") + suffix

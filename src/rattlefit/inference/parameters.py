@@ -177,8 +177,6 @@ def nuisance_prior(name: str, center: float, log_sd: float) -> ParameterSpec:
     return dataclasses.replace(spec, center=center, log_sd=log_sd)
 
 
-#: How a unit may be typed on a command line (``um`` for µm).
-TYPED_UNITS = {"um": "µm", "µm": "µm", "mm": "mm"}
 _CENTER = re.compile(r"\s*([-+0-9.eE]+)\s*([a-zA-Zµ]*)\s*")
 
 
@@ -200,20 +198,14 @@ def parse_prior(text: str) -> tuple[str, ParameterSpec]:
         raise RattlefitError(
             f"prior {text!r}: expected NAME=CENTER:LOG_SD, e.g. min_film=2um:0.1"
         ) from None
-    try:
-        q = quantity(name)
-    except KeyError:
-        q = None
-    if (
-        q is not None
-        and name in NUISANCES
-        and TYPED_UNITS.get(m.group(2), m.group(2)) != q.display_unit
-    ):
-        typed = {"µm": "um"}.get(q.display_unit, q.display_unit)
-        usual = next((s.center for s in default_specs([], {}) if s.name == name), None) or 1.0
+    if name not in NUISANCES:
+        return name, nuisance_prior(name, value, sd)  # raises, naming the nuisances
+    q = quantity(name)
+    if m.group(2) not in {q.display_unit, q.typed_unit}:
+        (usual,) = (s.center for s in default_specs([], {}) if s.name == name)
         raise RattlefitError(
             f"prior {text!r}: {name}'s centre "
-            + (f"is in {q.display_unit} and must say so" if typed else "has no unit")
-            + f", e.g. {name}={q.shown(usual):g}{typed}:{sd:g}"
+            + (f"is in {q.display_unit} and must say so" if q.display_unit else "has no unit")
+            + f", e.g. {name}={q.shown(usual):g}{q.typed_unit}:{sd:g}"
         )
-    return name, nuisance_prior(name, value / (q.scale if q else 1.0), sd)
+    return name, nuisance_prior(name, value / q.scale, sd)

@@ -9,7 +9,7 @@ from ..diagnosis.result import MISSED_Z, Diagnosis
 from ..inference.posterior import Posterior
 from ..inference.profile import CHI2_1_95
 from ..inference.result import FitResult, identified_ratio
-from ..quantities import FILM, display
+from ..quantities import FILM, base_name, display
 
 #: The parameters the table shows first: the films, the drag torque, the viscosity and the
 #: squeeze momenta; the nuisances follow in a block of their own.
@@ -17,8 +17,8 @@ PHYSICAL = (FILM, "drag_torque", "viscosity", "squeeze_momentum")
 
 
 def is_physical(name: str) -> bool:
-    """Whether ``name`` is one of the :data:`PHYSICAL` parameters (a film ``a[...]`` too)."""
-    return name.split("[")[0] in PHYSICAL
+    """Whether ``name`` is one of the :data:`PHYSICAL` parameters (an indexed film too)."""
+    return base_name(name) in PHYSICAL
 
 
 def format_table(result: FitResult) -> str:
