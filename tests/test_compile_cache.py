@@ -17,7 +17,7 @@ EVALUATE = """
 import sys
 import numpy as np
 import rattlefit as rf
-rf.use_compilation_cache(sys.argv[1])
+rf.configure(compilation_cache=sys.argv[1])
 from rattlefit.inference.forward import evaluate
 from rattlefit.inference.problem import build_problem
 rec = rf.read_recording(sys.argv[2])

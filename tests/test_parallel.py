@@ -31,7 +31,7 @@ SCRIPT = textwrap.dedent(
     import rattlefit as rf
     from rattlefit.simulation.solve import broadcast_params
     RUNS = {runs!r}
-    n = rf.use_cpu_cores(2)
+    n = rf.configure(cpu_cores=2).devices
     assert n == 2, n
     g = rf.table2_pair("II", center_distance_mm=65.6)
     model = rf.RattleModel.from_geometry(g)

@@ -22,6 +22,7 @@ SCRIPT = (
 import hashlib, json, os
 import numpy as np
 import rattlefit as rf
+rf.configure()
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.simulation.synthetic import synthesize
 g = rf.table2_pair("II", center_distance_mm=65.0)
@@ -45,10 +46,10 @@ def _run(env_changes):
 
 
 @pytest.mark.skipif(not X86, reason="the cap applies to x86-64 CPUs only")
-def test_import_caps_the_isa_before_jax_starts():
-    # the default import must give exactly what an explicit XLA cap gives: if the cap were set
-    # too late (after JAX started its backend) or not at all, an AVX-512 machine would compute
-    # the native realisation instead
+def test_configure_caps_the_isa_before_jax_starts():
+    # the default configuration must give exactly what an explicit XLA cap gives: if the cap
+    # were set too late (after JAX started its backend) or not at all, an AVX-512 machine
+    # would compute the native realisation instead
     default = _run({})
     explicit = _run({rp.ISA_ENV: "native", "XLA_FLAGS": f"--xla_cpu_max_isa={rp.DEFAULT_CPU_ISA}"})
     assert default["hash"] == explicit["hash"]

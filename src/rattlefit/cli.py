@@ -10,14 +10,12 @@ from __future__ import annotations
 import functools
 import json
 import sys
-import warnings
 from pathlib import Path
 
 import click
 
-from .compile_cache import use_compilation_cache
+from .config import quietly_configure
 from .errors import RattlefitError
-from .simulation.parallel import use_cpu_cores
 
 EXIT_INPUT = 2
 
@@ -192,13 +190,10 @@ def _priors(texts) -> dict:
 @click.version_option(package_name="rattlefit")
 def main() -> None:
     """Identify the physics of idle gear rattle from encoder recordings."""
-    # one JAX CPU device per core, so batched simulations use every core; a no-op (silently)
-    # when JAX has already started in this process, e.g. under a test runner
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        use_cpu_cores()
-    # compiled programs kept on disk: a second run skips compilation ($RATTLEFIT_CACHE_DIR)
-    use_compilation_cache()
+    # 64-bit mode, the instruction-set cap, one JAX CPU device per core and compiled programs
+    # kept on disk ($RATTLEFIT_CACHE_DIR); the device count is left as it is (silently) when
+    # JAX has already started in this process, e.g. under a test runner
+    quietly_configure(compilation_cache=True)
 
 
 @main.command()

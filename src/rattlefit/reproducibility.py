@@ -7,7 +7,7 @@ tens of milliseconds of simulated time, and a seeded synthetic recording, fit or
 comes out differently under different instruction sets (``benchmarks/isa_cost.py`` shows the
 effect and its cost).
 
-On import, rattlefit therefore caps XLA's CPU instruction set at :data:`DEFAULT_CPU_ISA`
+:func:`rattlefit.configure` therefore caps XLA's CPU instruction set at :data:`DEFAULT_CPU_ISA`
 (AVX2, with FMA: every x86-64 server CPU since about 2015 has it) by adding
 ``--xla_cpu_max_isa`` to ``XLA_FLAGS``. It must do so before JAX starts its CPU backend; a
 cap the user already set in ``XLA_FLAGS`` is kept. ``RATTLEFIT_CPU_ISA`` chooses another cap,
@@ -38,7 +38,9 @@ _FLAG = re.compile(r"--xla_cpu_max_isa=(\S+)")
 _X86 = ("x86_64", "amd64", "i386", "i686")
 
 
-def _backend_started() -> bool:
+def backend_started() -> bool:
+    """Whether JAX has started its backends (after which XLA flags and the device count are
+    fixed)."""
     try:
         from jax._src import xla_bridge
 
@@ -63,11 +65,11 @@ def pin_cpu_isa(isa: str | None = None) -> str:
     isa = isa or os.environ.get(ISA_ENV) or DEFAULT_CPU_ISA
     if isa.lower() == "native" or platform.machine().lower() not in _X86:
         return "native"
-    if _backend_started():
+    if backend_started():
         warnings.warn(
-            "rattlefit: JAX started before rattlefit was imported, so XLA's CPU instruction "
-            f"set is not capped at {isa}; seeded results may differ between machines. Import "
-            "rattlefit before running any JAX computation.",
+            "rattlefit: JAX started before rattlefit.configure() was called, so XLA's CPU "
+            f"instruction set is not capped at {isa}; seeded results may differ between "
+            "machines. Call rattlefit.configure() before running any JAX computation.",
             RuntimeWarning,
             stacklevel=2,
         )

@@ -42,6 +42,7 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 from scipy import special
 
+from ..config import require_x64
 from ..errors import ParameterError
 from ..util import array_namespace, concrete
 from .drive import Drive
@@ -390,6 +391,11 @@ class RattleModel(eqx.Module):
         smoothing: Smoothing | None = None,
         effects: tuple[Effect, ...] = (),
     ) -> RattleModel:
+        """The model of the gear pair ``geometry``, its contact smoothed by ``smoothing``
+        (default :class:`Smoothing`), with ``effects`` added. Raises
+        :class:`~rattlefit.RattlefitError` when JAX's 64-bit mode is off
+        (:func:`rattlefit.configure`)."""
+        require_x64("RattleModel.from_geometry")
         g = geometry
         f = lambda x: jnp.asarray(x, dtype=float)  # noqa: E731
         smoothing = smoothing or Smoothing()

@@ -20,6 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from ..config import require_x64
 from ..errors import SolverError
 from ..physics.drive import Drive
 from ..physics.model import RattleModel, RattleParams, share_stiffness_tables
@@ -224,7 +225,11 @@ def simulate(
     sensitivity : ``"forward"`` (forward-mode derivatives, for Jacobians) or ``"reverse"``.
     y0 : initial (q, v) at ``-burn_in`` (effects with a state of their own start it at zero),
         or the full state; default at rest on the drive flank.
+
+    Raises :class:`~rattlefit.RattlefitError` when JAX's 64-bit mode is off
+    (:func:`rattlefit.configure`).
     """
+    require_x64("simulate")
     n = round(duration * sample_rate)
     if n < 2:
         raise ValueError(f"duration {duration} s gives fewer than two samples")
@@ -335,6 +340,7 @@ def simulate_batch(
     members (other sizes compile to code that rounds differently, and chaos makes that
     another realisation). Outputs have shape (B, N); ``time`` and ``theta1`` are shared.
     """
+    require_x64("simulate_batch")
     if batch not in ("map", "vmap", "lockstep"):
         raise ValueError(f"batch must be 'map', 'vmap' or 'lockstep', got {batch!r}")
     if y0 is None:
