@@ -80,3 +80,23 @@ def test_no_module_imports_itself_through_others():
     assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
     cycle = find_cycle(graph)
     assert cycle is None, " → ".join(cycle)
+
+
+#: Which layers a package may not import: recordings are read without any analysis, and the
+#: report only draws (what it shows is computed by the layers below it).
+FORBIDDEN = {
+    "rattlefit.io": ("rattlefit.features", "rattlefit.simulation", "rattlefit.inference",
+                     "rattlefit.diagnosis", "rattlefit.report", "rattlefit.likelihood"),
+    "rattlefit.report": ("rattlefit.simulation",),
+}  # fmt: skip
+
+
+def test_layers_import_only_downwards():
+    modules = module_names()
+    wrong = []
+    for name, path in modules.items():
+        for layer, banned in FORBIDDEN.items():
+            if name == layer or name.startswith(layer + "."):
+                hits = [m for m in imports_of(name, path, modules) if m.startswith(banned)]
+                wrong += [f"{name} imports {m}" for m in hits]
+    assert not wrong, "\n".join(wrong)

@@ -231,7 +231,7 @@ def test_forward_sensitivity_is_finite(pair2):
 
 
 def test_quantised_output_has_eq8_resolution(pair2):
-    from rattlefit.features.spectra import quantisation_std
+    from rattlefit.io.recording import quantisation_std
     from rattlefit.simulation.solve import quantised_relative_motion
 
     model = rf.RattleModel.from_geometry(pair2)

@@ -453,6 +453,7 @@ def identify(
     (e.g. a backlash sweep; under several lubrications each gets its own a[LUBRICATION])."""
     from .inference.identify import identify as run
     from .inference.options import FitOptions
+    from .inference.realisation import fitted_realisations
     from .io.recording import read_recording
     from .report import format_table, plot_fit
 
@@ -483,7 +484,7 @@ def identify(
         doc,
         output,
         plot_dir,
-        lambda d: plot_fit(result, recordings, d),
+        lambda d: plot_fit(result, recordings, d, fitted_realisations(result, recordings)),
     )
     _write_report(report_file, fit=doc, recordings=recordings)
 

@@ -16,6 +16,7 @@ import math
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
+from ..io.recording import quantisation_std
 from ..util import array_namespace
 
 #: Frequency band of the gear rattle index, eq. (10) of the seed paper, Hz.
@@ -139,11 +140,6 @@ def spectral_features(
     """
     power = band_power(x, bands)
     return array_namespace(power).log10(power + noise_floor)
-
-
-def quantisation_std(counts_per_rev: int, gear_ratio: float) -> float:
-    """Standard uncertainty of Δθ* from the two encoders' resolution, eq. (8), rad."""
-    return (2 * math.pi / counts_per_rev) / (2 * math.sqrt(3)) * math.sqrt(1 + gear_ratio**2)
 
 
 def quantisation_floor(counts_per_rev: int, gear_ratio: float, sample_rate: float) -> float:

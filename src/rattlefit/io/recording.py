@@ -23,7 +23,6 @@ import numpy as np
 import numpy.typing as npt
 
 from rattlefit.errors import RecordingError
-from rattlefit.features.spectra import quantisation_std
 from rattlefit.io.schema import (
     FORMAT_NAME,
     FORMAT_VERSION,
@@ -195,6 +194,11 @@ class Recording:
     def quantisation_std(self) -> float:
         """Standard deviation of encoder quantisation noise in Δθ*, eq. (8) (rad)."""
         return quantisation_std(self.counts_per_rev, self.gear_ratio)
+
+
+def quantisation_std(counts_per_rev: int, gear_ratio: float) -> float:
+    """Standard uncertainty of Δθ* from the two encoders' resolution, eq. (8), rad."""
+    return (2 * math.pi / counts_per_rev) / (2 * math.sqrt(3)) * math.sqrt(1 + gear_ratio**2)
 
 
 # --- Cross-field checks --------------------------------------------------------------------------

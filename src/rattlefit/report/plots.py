@@ -22,7 +22,6 @@ from ..inference.result import FitResult
 from ..inference.rig import setup
 from ..io.recording import Recording
 from ..quantities import axis_label, display
-from ..simulation.solve import absolute_tolerances, simulate
 from ..util import atomic_write
 
 
@@ -62,30 +61,28 @@ def _save(fig, path: Path) -> Path:
     return path
 
 
-def plot_fit(result: FitResult, recordings: list[Recording], directory: str | Path) -> list[Path]:
-    """Measured vs fitted spectra and time histories, and the parameter correlations."""
+def plot_fit(
+    result: FitResult,
+    recordings: list[Recording],
+    directory: str | Path,
+    realisations: Sequence[np.ndarray],
+) -> list[Path]:
+    """Measured vs fitted spectra and time histories, and the parameter correlations.
+
+    ``realisations``: one simulated Δθ* (rad) at the fitted parameters per recording
+    (:func:`rattlefit.inference.realisation.fitted_realisations`), drawn beside the
+    measurement. Returns the PNG files written in ``directory``."""
     directory = Path(directory)
     out = []
-    for k, rec in enumerate(recordings):
+    for k, (rec, motion) in enumerate(zip(recordings, realisations, strict=True)):
         rig = setup(rec, drive=result.options.drive)
-        sol = simulate(
-            rig.model,
-            result.rattle_params(k),
-            rig.drive,
-            duration=rec.duration,
-            sample_rate=rec.sample_rate_hz,
-            rtol=result.options.rtol,
-            atol=absolute_tolerances(
-                result.options.rtol, [r.operating.lubrication for r in recordings]
-            ),
-        )
         fig, (ax1, ax2) = pyplot().subplots(2, 1, figsize=(9, 8))
         f = rig.bands.frequencies
         measured = np.asarray(
             welch_psd(rec.relative_motion, rig.sample_rate, rig.bands.segment_length)
         )
         simulated = (
-            np.asarray(welch_psd(sol.relative_motion, rig.sample_rate, rig.bands.segment_length))
+            np.asarray(welch_psd(motion, rig.sample_rate, rig.bands.segment_length))
             + rig.noise_floor
         )
         ax1.loglog(f[1:], measured[1:], color="0.6", lw=0.8, label="measured (Welch PSD)")
@@ -119,7 +116,7 @@ def plot_fit(result: FitResult, recordings: list[Recording], directory: str | Pa
         ax2.plot(t[:n], centred(rec.relative_motion)[:n] * 1e3, color="k", lw=0.8, label="measured")
         ax2.plot(
             t[:n],
-            centred(sol.relative_motion)[:n] * 1e3,
+            centred(motion)[:n] * 1e3,
             color="C1",
             lw=0.8,
             alpha=0.8,
