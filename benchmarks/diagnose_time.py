@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 
 from rattlefit.reproducibility import platform_info
-from studies import head_commit, write_json
+from rattlefit.testing.results import head_commit, write_result
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_FILE = ROOT.parent / "shared" / "recordings" / "pairII_boundary_65.4_20pct_16Hz_runout.h5"
@@ -36,7 +36,7 @@ def timed_diagnosis(path: str) -> dict:
     import rattlefit as rf
     from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
 
-    devices = rf.use_cpu_cores()
+    devices = rf.configure().devices
     t0 = time.perf_counter()
     diag = diagnose(
         [rf.read_recording(path)],
@@ -102,7 +102,7 @@ def main() -> None:
     for name, seconds in res["per_effect_s"].items():
         print(f"  {name:24s} {seconds:6.0f} s")
     if args.json:
-        write_json(args.json, result_document(path, res))
+        write_result(args.json, result_document(path, res))
 
 
 if __name__ == "__main__":

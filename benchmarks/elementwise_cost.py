@@ -30,7 +30,9 @@ def main(argv=None) -> int:
     parser.add_argument("--reps", type=int, default=5)
     args = parser.parse_args(argv)
 
-    import rattlefit  # noqa: F401, I001  (before jax: the ISA cap)
+    import rattlefit
+
+    rattlefit.configure(cpu_cores=1)
     import jax
     import jax.numpy as jnp
 

@@ -1,6 +1,6 @@
 """What the AVX2 cap (rattlefit.reproducibility) costs in speed, and whether it matters.
 
-rattlefit caps XLA's CPU instruction set at AVX2 on import so that a seeded result does not
+rattlefit.configure() caps XLA's CPU instruction set at AVX2 so that a seeded result does not
 depend on the extensions a CPU offers beyond it; on a CPU with wider vectors the cap gives them
 up. This measures the price as a ratio in one run: the same synthetic recording (pair II at 65.0 mm,
 10 % at 8 Hz, 3 s + 0.5 s burn-in, one simulation at rtol 1e-7 by ``synthesize``) is made in
@@ -27,6 +27,7 @@ CHILD = """
 import hashlib, json, time
 import numpy as np
 import rattlefit as rf
+rf.configure()
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.simulation.synthetic import synthesize
 g = rf.table2_pair("II", center_distance_mm=65.0)

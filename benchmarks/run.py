@@ -22,7 +22,7 @@ import sys
 import time
 from pathlib import Path
 
-from studies import RECORDINGS
+from rattlefit.testing.shared import recordings_dir
 from suite_report import match, report
 from suite_steps import (
     DIAGNOSE_RECORDING,
@@ -55,13 +55,13 @@ def main(argv=None) -> int:
     ap.add_argument("--json", type=Path, help="write all results to this JSON file")
     args = ap.parse_args(argv)
 
-    if not RECORDINGS.is_dir():
-        print(f"the shared recordings are not at {RECORDINGS}", file=sys.stderr)
+    if not recordings_dir().is_dir():
+        print(f"the shared recordings are not at {recordings_dir()}", file=sys.stderr)
         return 2
     if args.quick:
         names = [QUICK_RECORDING]
     else:
-        names = sorted(p.stem for p in RECORDINGS.glob("*.h5"))
+        names = sorted(p.stem for p in recordings_dir().glob("*.h5"))
     reps = 1 if args.quick else 3
 
     t0 = time.perf_counter()

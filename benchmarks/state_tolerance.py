@@ -48,7 +48,7 @@ def main(argv=None) -> int:
 
     import rattlefit
 
-    rattlefit.use_cpu_cores()
+    rattlefit.configure()
     import jax.numpy as jnp
     import numpy as np
 
@@ -59,7 +59,7 @@ def main(argv=None) -> int:
         broadcast_params,
         simulate_batch,
     )
-    from studies import operating_points, truth_params  # the shared files
+    from rattlefit.testing.shared import operating_points, truth_params  # the shared files
 
     m = args.realisations
     print(f"seed {args.seed}, {m} realisations, fit rtol {args.rtol}", flush=True)

@@ -32,7 +32,9 @@ def main(argv=None) -> int:
     parser.add_argument("--reps", type=int, default=5)
     args = parser.parse_args(argv)
 
-    import rattlefit  # noqa: F401, I001  (before jax: the ISA cap)
+    import rattlefit
+
+    rattlefit.configure(cpu_cores=1)
     import equinox as eqx
     import jax
     import jax.numpy as jnp
@@ -40,7 +42,7 @@ def main(argv=None) -> int:
 
     from rattlefit.physics.model import share_stiffness_tables
     from rattlefit.simulation.solve import broadcast_params, solve_rows
-    from studies import operating_points, truth_params  # the shared files
+    from rattlefit.testing.shared import operating_points, truth_params  # the shared files
 
     [(_, setup, truth)] = operating_points([NAME])
     params = truth_params(setup, truth)

@@ -105,7 +105,7 @@ def report_header(res: dict) -> list[str]:
     out.append(
         f"machine: {m['cpu_count']} CPU(s) ({m['cpu_model']}), jax {m['jax']} on "
         f"{m['jax_backend']} ({res.get('devices', 1)} JAX device(s): "
-        "rattlefit.use_cpu_cores), "
+        "rattlefit.configure), "
         f"diffrax {m['diffrax']}, scipy {m['scipy']}, "
         f"python {m['python']}; load average {res['load_before'][0]:.2f} before, "
         f"{res['load_after'][0]:.2f} after the run (anything > 0 means shared CPUs)"

@@ -14,7 +14,7 @@ import time
 import traceback
 from pathlib import Path
 
-from studies import RECORDINGS, operating_points, truth_params
+from rattlefit.testing.shared import operating_points, recordings_dir, truth_params
 
 QUICK_RECORDING = "pairII_boundary_65.0_10pct_8Hz"
 IDENTIFY_RECORDING = "pairII_boundary_65.0_10pct_8Hz.h5"
@@ -489,7 +489,7 @@ def timed_identify(file: str):
     from rattlefit.inference.options import FitOptions
     from rattlefit.io.recording import read_recording
 
-    rec = read_recording(RECORDINGS / file)
+    rec = read_recording(recordings_dir() / file)
     t0 = time.perf_counter()
     result = identify([rec], FitOptions(), progress=lambda msg: say(f"identify: {msg}"))
     return rec, result, time.perf_counter() - t0
@@ -557,7 +557,7 @@ def step_diagnose(args):
     from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
     from rattlefit.io.recording import read_recording
 
-    rec = read_recording(RECORDINGS / args["file"])
+    rec = read_recording(recordings_dir() / args["file"])
     t0 = time.perf_counter()
     options = DiagnoseOptions(every_effect=True)
     diag = diagnose([rec], options, progress=lambda msg: say(f"diagnose: {msg}"))
@@ -601,7 +601,7 @@ def child(step: str, args: dict) -> dict:
     import rattlefit
 
     # one JAX device per core (as the CLI does): batches and identify use every core
-    devices = rattlefit.use_cpu_cores()
+    devices = rattlefit.configure().devices
     t0 = time.perf_counter()
     result = STEPS[step](args)
     result.setdefault("devices", devices)

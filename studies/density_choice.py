@@ -112,7 +112,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", default="studies/results/density_choice.json")
     args = ap.parse_args()
-    devices = rf.use_cpu_cores()
+    devices = rf.configure().devices
     sizes = sorted(int(s) for s in args.sizes.split(","))
     s_problem, s_design, s_held, s_sim, s_train, s_cases = np.random.SeedSequence(args.seed).spawn(
         6
@@ -163,5 +163,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    jax.config.update("jax_enable_x64", True)
     main()

@@ -25,7 +25,6 @@ import os
 import time
 from pathlib import Path
 
-import jax
 import numpy as np
 from common import head_commit, write_result
 from scipy import stats
@@ -227,7 +226,7 @@ def main() -> None:
         "reuses it when the budget and seed match",
     )
     args = ap.parse_args()
-    devices = rf.use_cpu_cores()
+    devices = rf.configure().devices
     root = np.random.SeedSequence(args.seed)
     points = args.points.split(",")
     all_rows, per_point = [], {}
@@ -311,5 +310,4 @@ def write(args, per_point: dict, all_rows: list, devices: int, wall: float, poin
 
 
 if __name__ == "__main__":
-    jax.config.update("jax_enable_x64", True)
     main()

@@ -1,15 +1,12 @@
-"""The calibration sets of benchmarks/diagnose_sets.py: their recordings read back, their
+"""The calibration sets of rattlefit.testing.diagnose_sets: their recordings read back, their
 injected effects follow their formulas, and the sets are the same each time they are listed.
 
 Nothing here builds a whole set: single recordings of 0.5 s are built into a temporary
 directory.
 """
 
-import importlib.util
 import json
 import math
-import sys
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -18,16 +15,7 @@ import pytest
 
 import rattlefit as rf
 from rattlefit.physics.oil import dynamic_viscosity
-
-# loaded from its file: putting benchmarks/ on sys.path would let its scripts (coverage.py, ...)
-# shadow installed packages
-_SPEC = importlib.util.spec_from_file_location(
-    "diagnose_sets", Path(__file__).resolve().parents[1] / "benchmarks" / "diagnose_sets.py"
-)
-ds = sys.modules.get("diagnose_sets")
-if ds is None:
-    ds = sys.modules["diagnose_sets"] = importlib.util.module_from_spec(_SPEC)
-    _SPEC.loader.exec_module(ds)
+from rattlefit.testing import diagnose_sets as ds
 
 SHORT = 0.5  # s: the recordings built here
 

@@ -125,7 +125,7 @@ def test_an_oil_jet_companion_identifies_the_boundary_film(mild_recording):
     # a[boundary] ∝ √h_min, which h_min's prior bounds. To keep CI short the fit departs from
     # the defaults: 12 profile realisations instead of 24, one refined start instead of three
     # (they reach the same basin here), and no profile continuation (which only widens
-    # a[boundary]'s interval). The coverage studies of benchmarks/README use the defaults.
+    # a[boundary]'s interval). The coverage studies of studies/README use the defaults.
     rec, truth = mild_recording
     g = rf.table2_pair("II", center_distance_mm=65.0)
     op = OperatingPoint("oil_jet", 25.0, 52.36, 5.236, 8.0)
@@ -218,8 +218,8 @@ def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque_on_average():
     #
     # Compared as a mean over fit seeds, not one fit's widths: one interval's width moves with
     # the fit seed (release states, starts, dither) about as much as the recordings differ, so
-    # one seed's comparison is close to a coin flip (benchmarks/README, "The joint comparison
-    # is the fit's own chance"). Only T_b is asserted: a boundary sweep pins μ·a³/h_min², not
+    # one seed's comparison is close to a coin flip (studies/sweep_study.py --refits measures
+    # how much). Only T_b is asserted: a boundary sweep pins μ·a³/h_min², not
     # a or μ alone, and μ stays at its prior's width. All three distances are fitted: the
     # 65.0 mm recording locks into periodic orbits and carries a tenth of the 65.4 mm one's
     # information about T_b, so a joint fit of those two alone could narrow T_b by about 5 %

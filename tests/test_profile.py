@@ -122,7 +122,7 @@ def test_profile_threshold_covers_the_truth_of_noisy_profiles():
     # threshold, the truth is inside in ≥ 95 % of profiles — with the analytic allowance
     # alone even where s is 6× it (95 % of them, just), and with the jitter's rms (nearly all,
     # the interval 1.3× wider). So on independent noise the roughness allowance is conservative;
-    # its use in identify is against roughness that is not independent (benchmarks/README)
+    # its use in identify is against roughness that is not independent (docs/identification.md)
     rng = np.random.default_rng(NOISY_PROFILES_SEED)
     offsets = [o for o in np.arange(-6.0, 6.001, 0.25) if abs(o) > 1e-9]
     s, s_mc, n = 6.0, 1.0, 1000
@@ -145,7 +145,7 @@ def test_profile_threshold_covers_the_truth_of_noisy_profiles():
 
 
 def test_profile_threshold_from_several_sets_counts_the_noise_not_the_structure():
-    # the jitter Δcosts of one fit's optimum (as benchmarks/roughness.py --sweep prints): a
+    # the jitter Δcosts of one fit's optimum (the Δcosts over independent realisation sets): a
     # wall along a and a slope along T_b that repeat in every realisation set, plus noise of
     # sd 3 that does not. Over several sets the allowance is the noise's sd, not the
     # structure's rms (20.8) that one set's root mean square measures.

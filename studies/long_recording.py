@@ -10,7 +10,7 @@ runs them (or, with ``--from DIR``, reads the OUT files already in DIR, named
 bound runs to the end of the range), the ratio of the 3 s width to the 30 s one (the width check
 asks for ≥ 2), whether the truth is inside, and the wall times.
 
-    python benchmarks/long_recording.py [--from DIR] [--features bands,bands+folded]
+    python studies/long_recording.py [--from DIR] [--features bands,bands+folded]
                                         [--pairs shared,rattlefit] [--json out.json]
 """
 
@@ -21,8 +21,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+from common import head_commit, identified, log_width, write_result
+
 from rattlefit.reproducibility import platform_info
-from studies import head_commit, identified, log_width, write_json
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "recordings"
@@ -105,7 +106,7 @@ def study(directory: Path, feature_sets: list[str], pairs: list[str], say) -> li
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--from", dest="directory", default="benchmarks/results/raw/long")
+    ap.add_argument("--from", dest="directory", default="studies/results/raw/long")
     ap.add_argument("--features", default="bands,bands+folded")
     ap.add_argument("--pairs", default=",".join(PAIRS), help="of: " + ", ".join(PAIRS))
     ap.add_argument("--json")
@@ -118,7 +119,7 @@ def main() -> None:
         ap.error(f"--pairs: unknown {', '.join(unknown)} (of {', '.join(PAIRS)})")
     rows = study(directory, args.features.split(","), pairs, print)
     if args.json:
-        write_json(args.json, result_document(rows))
+        write_result(args.json, result_document(rows))
 
 
 def row_phrase(row: dict) -> str:
@@ -144,7 +145,7 @@ def row_phrase(row: dict) -> str:
 
 
 def result_document(rows: list[dict]) -> dict:
-    """The benchmark result file (``benchmarks/results/``) of ``rows``."""
+    """The result file (``studies/results/``) of ``rows``."""
     held = all(
         p.get("truth_inside", True)
         for r in rows
@@ -168,7 +169,7 @@ def result_document(rows: list[dict]) -> dict:
         "a one-sided interval's log width runs to the end of the range; pairs measured: "
         + ", ".join(dict.fromkeys(r["recordings"] for r in rows))
         + f" (of {', '.join(PAIRS)})",
-        "command": "python benchmarks/long_recording.py --json OUT",
+        "command": "python studies/long_recording.py --json OUT",
         "results": rows,
         "platform": platform_info(),
         "commit": head_commit(),

@@ -13,7 +13,7 @@ h_min, stiffness scale) are parameters too, with the fit's priors added. The pre
 interval of each parameter is the factor ``exp(2 · 1.96 · sd)``, sd from
 ``F⁻¹``. This predicts what a fit with those features could reach; it is not a fit.
 
-    python benchmarks/feature_information.py [--n 24] [--delta 0.4] [--json out.json]
+    python studies/feature_information.py [--n 24] [--delta 0.4] [--json out.json]
 
 Seeds: the truth's recordings use seeds 0…n−1, each moved point the next n.
 """
@@ -25,6 +25,7 @@ import math
 import time
 
 import numpy as np
+from common import head_commit, write_result
 
 import rattlefit as rf
 from rattlefit.features.ensemble import shrunk_correlation
@@ -33,7 +34,6 @@ from rattlefit.features.spectra import BandSpec, spectral_features
 from rattlefit.inference.rig import setup
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.reproducibility import platform_info
-from studies import head_commit, write_json
 
 #: (name, pair, centre distance mm, lubrication, fluctuation %, frequency Hz, a m, viscosity)
 REGIMES = (
@@ -128,11 +128,11 @@ def main() -> None:
     args = ap.parse_args()
     rows = [regime_study(r, args.n, args.delta, print) for r in REGIMES]
     if args.json:
-        write_json(args.json, result_document(rows, args.n, args.delta))
+        write_result(args.json, result_document(rows, args.n, args.delta))
 
 
 def result_document(rows: list[dict], n: int, delta: float) -> dict:
-    """The benchmark result file (``benchmarks/results/``) of the regimes' ``rows``."""
+    """The result file (``studies/results/``) of the regimes' ``rows``."""
     head = {r["regime"]: r for r in rows}
     h = head["headline boundary"]
 
@@ -152,7 +152,7 @@ def result_document(rows: list[dict], n: int, delta: float) -> dict:
         "verdict": "—",
         "measured": f"{n} seeded recordings per point, central differences at e^±{delta}, "
         "the Monte Carlo bias of the derivatives removed",
-        "command": "python benchmarks/feature_information.py --json OUT",
+        "command": "python studies/feature_information.py --json OUT",
         "results": {"n": n, "delta": delta, "phase_bins": PHASE_BINS, "regimes": rows},
         "platform": platform_info(),
         "commit": head_commit(),
@@ -160,4 +160,5 @@ def result_document(rows: list[dict], n: int, delta: float) -> dict:
 
 
 if __name__ == "__main__":
+    rf.configure()
     main()

@@ -2,13 +2,13 @@
 matrix on recordings with an effect written in another form than the catalogue's.
 
 The cases are the independent simulator's recordings in ``../shared/recordings/`` (with their
-truth) and the sets of ``benchmarks/diagnose_sets.py`` (clean recordings whose model form
+truth) and the sets of ``rattlefit.testing.diagnose_sets`` (clean recordings whose model form
 differs from rattlefit's fitted one; recordings with an injected effect of another form).
 Each case lists the verdicts that count as right: ``none`` or ``unexplained`` for a clean
 recording, the effect (or, for dissipation in contact, any of the dissipative candidates)
 otherwise.
 
-    python benchmarks/diagnose_study.py [--sets shared,clean,injected] [--full]
+    python studies/diagnose_study.py [--sets shared,clean,injected] [--full]
                                         [--only NAME ...] [--cases-dir DIR [--rows-only]]
                                         [--json out.json] [--quiet]
                                         [--result README_RESULT.json --method-commit C]
@@ -35,13 +35,13 @@ import time
 from collections import Counter
 from pathlib import Path
 
+from common import write_result
 from scipy import stats
 
 import rattlefit as rf
-from diagnose_sets import DISSIPATION, clean_set, injected_set
 from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
 from rattlefit.diagnosis.evidence import POINTS_TO, findings
-from studies import write_json
+from rattlefit.testing.diagnose_sets import DISSIPATION, clean_set, injected_set
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared" / "recordings"
@@ -164,7 +164,7 @@ def run_cases(cases: list[dict], full: bool, cases_dir: Path | None, say) -> lis
             row = case | {"path": where, "verdict": "error", "right": False, "wall_s": None}
             row["detail"] = {"error": f"{type(exc).__name__}: {exc}"}
         if path is not None:
-            write_json(path, row)
+            write_result(path, row)
         rows.append(row)
     return rows
 
@@ -239,7 +239,7 @@ def study_verdict(result: dict, n_clean: int, n_effect: int) -> str:
 
 
 def result_document(rows: list[dict], cases: list[dict], method_commit: str) -> dict:
-    """The README result file (``benchmarks/results/diagnose_full_study.json``) of a full
+    """The README result file (``studies/results/diagnose_full_study.json``) of a full
     study's ``rows`` out of the ``cases`` selected, run on the diagnosis code of
     ``method_commit``."""
     result = summary(rows)
@@ -249,7 +249,7 @@ def result_document(rows: list[dict], cases: list[dict], method_commit: str) -> 
         "order": 11.6,
         "what": "full `diagnose` (default options) on recordings rattlefit's fitted model did "
         "not make: the shared independent recordings, the clean calibration set and the "
-        "injected set of benchmarks/diagnose_sets.py",
+        "injected set of rattlefit.testing.diagnose_sets",
         "summary": (
             f"all {n_cases} cases"
             if len(rows) == n_cases
@@ -261,13 +261,13 @@ def result_document(rows: list[dict], cases: list[dict], method_commit: str) -> 
         + ", ".join(f"{k} {v['right']}/{v['cases']} right" for k, v in result["per_set"].items()),
         "aim": "≤ 5 % false positives on ≥ 20 clean recordings; ≥ 80 % of effect cases right",
         "verdict": study_verdict(result, n_clean, n_cases - n_clean),
-        "measured": "python benchmarks/diagnose_study.py --full --sets shared,clean,injected "
-        "--cases-dir benchmarks/results/diagnose_cases (one row a case, fit seed 0, "
+        "measured": "python studies/diagnose_study.py --full --sets shared,clean,injected "
+        "--cases-dir studies/results/diagnose_cases (one row a case, fit seed 0, "
         f"family-wise level 0.01), on the diagnosis code of commit {method_commit}; a row's "
         "wall_s includes any time the study was paused or ran at low priority; rows may come "
         "from several machines of one kind (platform: the one that summarised them)",
-        "command": "python benchmarks/diagnose_study.py --full --sets shared,clean,injected "
-        "--cases-dir benchmarks/results/diagnose_cases --rows-only --result OUT "
+        "command": "python studies/diagnose_study.py --full --sets shared,clean,injected "
+        "--cases-dir studies/results/diagnose_cases --rows-only --result OUT "
         f"--method-commit {method_commit}",
         "results": {**result, "cases": [{k: r[k] for k in ROW_KEYS if k in r} for r in rows]},
         "platform": rf.reproducibility.platform_info(),
@@ -314,14 +314,15 @@ def main() -> None:
     for c in result["confusion"]:
         say(f"  {c['truth']:28s} → {c['verdict']:28s} {c['count']}")
     if args.json:
-        write_json(
+        write_result(
             args.json, {"mode": "full" if args.full else "model-free", **result, "cases": rows}
         )
     if args.result:
         if not args.full:
             ap.error("--result describes a full study: add --full")
-        write_json(args.result, result_document(rows, selected, args.method_commit))
+        write_result(args.result, result_document(rows, selected, args.method_commit))
 
 
 if __name__ == "__main__":
+    rf.configure()
     main()

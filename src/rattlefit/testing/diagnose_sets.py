@@ -1,8 +1,8 @@
 """Calibration sets for ``rattlefit diagnose``: recordings its own fitted model did not make.
 
 Two sets of 3 s recordings in the recording format (version 1), built deterministically from
-fixed seeds and cached under ``benchmarks/cache/diagnose_sets/<set>/`` with a ``truth.json``
-beside them:
+fixed seeds and cached under ``$RATTLEFIT_DIAGNOSE_SETS/<set>/`` (default
+``studies/cache/diagnose_sets`` from the working directory) with a ``truth.json`` beside them:
 
 * ``clean`` — no effect outside the seed paper's model, but a model form that differs from
   rattlefit's fitted smoothed model in the small ways a real rig's does: half are made by the
@@ -29,7 +29,7 @@ acceptable verdicts), ``form`` (how the recording was made, in words, with each 
 size), ``model`` (the model-form values in SI units), ``effects`` (each injected effect's
 parameters in SI units) and ``seed``.
 
-    python benchmarks/diagnose_sets.py [--set clean|injected|all] [--jobs N]
+    python -m rattlefit.testing.diagnose_sets [--set clean|injected|all] [--jobs N]
 
 prints each recording's name and build time (files that exist are skipped). As a module,
 :func:`clean_set` and :func:`injected_set` return ``[(path, truth), ...]`` after building what
@@ -42,6 +42,7 @@ import argparse
 import itertools
 import json
 import math
+import os
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -55,18 +56,19 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from rattlefit.io.recording import OperatingPoint, write_recording
-from rattlefit.physics.drive import Drive
-from rattlefit.physics.effects import EFFECTS, mechanism_of
-from rattlefit.physics.geometry import DEFAULT_STIFFNESS_SHAPE, GearGeometry, table2_pair
-from rattlefit.physics.model import DEFAULT_MIN_FILM, Effect, RattleModel, RattleParams
-from rattlefit.physics.oil import KELVIN, dynamic_viscosity, walther_coefficients
-from rattlefit.simulation.reference import simulate_reference
-from rattlefit.simulation.synthetic import PAPER_OIL, recording_from_trajectory, synthesize
+from ..config import configure
+from ..io.recording import OperatingPoint, write_recording
+from ..physics.drive import Drive
+from ..physics.effects import EFFECTS, mechanism_of
+from ..physics.geometry import DEFAULT_STIFFNESS_SHAPE, GearGeometry, table2_pair
+from ..physics.model import DEFAULT_MIN_FILM, Effect, RattleModel, RattleParams
+from ..physics.oil import KELVIN, dynamic_viscosity, walther_coefficients
+from ..simulation.reference import simulate_reference
+from ..simulation.synthetic import PAPER_OIL, recording_from_trajectory, synthesize
+from .shared import recordings_dir
 
-HERE = Path(__file__).resolve().parent
-CACHE = HERE / "cache" / "diagnose_sets"
-SHARED = HERE.parents[1] / "shared" / "recordings"
+#: Where the sets are built (``$RATTLEFIT_DIAGNOSE_SETS``, else under the working directory).
+CACHE = Path(os.environ.get("RATTLEFIT_DIAGNOSE_SETS", "studies/cache/diagnose_sets"))
 SETS = ("clean", "injected")
 
 #: Recorded duration, s (after the 0.5 s burn-in of both solvers).
@@ -963,6 +965,11 @@ def build_case(case: Case, directory: Path, *, duration: float = DURATION) -> Pa
     return path
 
 
+def configure_one_core() -> None:
+    """A worker's set-up: rattlefit's configuration on one JAX device."""
+    configure(cpu_cores=1)
+
+
 def _build_named(which: str, name: str, directory: str) -> tuple[str, float]:
     """Build the case ``name`` of set ``which`` (a worker's job); returns (name, seconds)."""
     case = next(c for c in CASES[which]() if c.name == name)
@@ -1001,7 +1008,9 @@ def build_set(which: str, *, jobs: int = 1, say=None) -> list[tuple[Path, dict]]
         if n not in missing:
             say(f"{which}/{n}: exists")
     if jobs > 1 and len(missing) > 1:
-        with ProcessPoolExecutor(jobs, mp_context=get_context("spawn")) as pool:
+        with ProcessPoolExecutor(
+            jobs, mp_context=get_context("spawn"), initializer=configure_one_core
+        ) as pool:
             futures = [pool.submit(_build_named, which, n, str(directory)) for n in missing]
             for f in futures:
                 n, seconds = f.result()
@@ -1016,12 +1025,12 @@ def build_set(which: str, *, jobs: int = 1, say=None) -> list[tuple[Path, dict]]
 def shared_clean() -> list[tuple[Path, dict]]:
     """The shared 3 s recordings without an unmodelled effect (not ``long/``), with their
     truth, ``expected`` and ``form``."""
-    path = SHARED / "truth.json"
+    path = recordings_dir() / "truth.json"
     if not path.is_file():
         return []
     out = []
     for name, entry in json.loads(path.read_text()).items():
-        file = SHARED / f"{name}.h5"
+        file = recordings_dir() / f"{name}.h5"
         if entry["unmodelled_effects"] or not file.is_file():
             continue
         form = "the independent simulator's recording (../shared/recordings)"
@@ -1046,6 +1055,7 @@ def main() -> None:
     ap.add_argument("--set", choices=("clean", "injected", "all"), default="all")
     ap.add_argument("--jobs", type=int, default=1, help="processes building at once")
     args = ap.parse_args()
+    configure()
     say = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
     which = SETS if args.set == "all" else (args.set,)
     t0 = time.perf_counter()

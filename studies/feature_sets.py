@@ -1,8 +1,8 @@
 """Coverage and interval widths over the coverage grid, per feature set (the width
-study): `benchmarks/coverage.py` run once with each `FitOptions.features`, on the same seeded
+study): `studies/coverage.py` run once with each `FitOptions.features`, on the same seeded
 cases, and each parameter's median log width per lubrication compared.
 
-    python benchmarks/feature_sets.py [--seed 0] [--cases 10] [--from DIR] [--json OUT]
+    python studies/feature_sets.py [--seed 0] [--cases 10] [--from DIR] [--json OUT]
 
 Each coverage run writes ``DIR/coverage_seed<seed>_<features>.json`` and is reused when that
 file exists. A one-sided interval's log width runs to the end of the parameter's range (a
@@ -18,8 +18,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+from common import head_commit, log_width, write_result
+
 from rattlefit.reproducibility import platform_info
-from studies import head_commit, log_width, write_json
 
 FEATURE_SETS = ("bands", "bands+folded")
 PARAMETERS = ("film_half_length", "drag_torque", "viscosity")
@@ -86,8 +87,8 @@ def result_document(seed: int, summaries: dict) -> dict:
         if min(ratio["film_half_length"], ratio["drag_torque"]) >= 2
         and rich["covered"] >= 0.9 * rich["intervals"]
         else "missed",
-        "measured": f"benchmarks/coverage.py --seed {seed} with each feature set",
-        "command": f"python benchmarks/feature_sets.py --seed {seed} --json OUT",
+        "measured": f"studies/coverage.py --seed {seed} with each feature set",
+        "command": f"python studies/feature_sets.py --seed {seed} --json OUT",
         "results": {"seed": seed, **summaries},
         "platform": platform_info(),
         "commit": head_commit(),
@@ -98,7 +99,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--cases", type=int, default=10)
-    ap.add_argument("--from", dest="directory", default="benchmarks/results/raw/feature_sets")
+    ap.add_argument("--from", dest="directory", default="studies/results/raw/feature_sets")
     ap.add_argument("--json")
     args = ap.parse_args()
     directory = Path(args.directory)
@@ -111,7 +112,7 @@ def main() -> None:
         for group, w in s["median_log_width"].items():
             print(f"  {group:9s} " + ", ".join(f"{k} {v:.2f}" for k, v in w.items()))
     if args.json:
-        write_json(args.json, result_document(args.seed, summaries))
+        write_result(args.json, result_document(args.seed, summaries))
 
 
 if __name__ == "__main__":

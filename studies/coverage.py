@@ -6,7 +6,7 @@ identifies it with the default `FitOptions`, and reports whether each 95 % inter
 truth and whether the fit called `a` identified. The check: truth inside the interval in
 ≥ 90 % of cases, and `a` within 20 % where reported identified.
 
-    python benchmarks/coverage.py [--cases 10] [--seed 0] [--json out.json] [--only K ...]
+    python studies/coverage.py [--cases 10] [--seed 0] [--json out.json] [--only K ...]
                                   [--rtol R] [--dither D] [--set FIELD=JSON ...] [--quiet]
                                   [--prior NAME=CENTER:LOG_SD ...] [--companion LUB]
 
@@ -30,6 +30,7 @@ import itertools
 import time
 
 import numpy as np
+from common import add_set_argument, set_overrides, write_result
 
 import rattlefit as rf
 from rattlefit.inference.identify import identify
@@ -38,7 +39,6 @@ from rattlefit.inference.parameters import film_names, parse_prior
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.physics.oil import dynamic_viscosity
 from rattlefit.simulation.synthetic import synthesize
-from studies import add_set_argument, set_overrides, write_json
 
 LUBRICATION = {"dry": (0.0, 20.0), "boundary": (0.085e-3, 20.0), "oil_jet": (1.0e-3, 25.0)}
 DRAG = {"I": 0.03, "II": 0.025}
@@ -140,7 +140,8 @@ def print_summary(rows: list[dict]) -> None:
 def main() -> None:
     args, overrides = parse_args()
     print(
-        f"{rf.use_cpu_cores()} JAX device(s); seed {args.seed}; FitOptions overrides {overrides}",
+        f"{rf.configure().devices} JAX device(s); seed {args.seed}; "
+        f"FitOptions overrides {overrides}",
         flush=True,
     )
     rng = np.random.default_rng(args.seed)
@@ -207,7 +208,7 @@ def main() -> None:
     print_summary(rows)
     if args.json:
         doc = {"options": overrides, "seed": args.seed, "companion": args.companion, "cases": rows}
-        write_json(args.json, doc, default=dataclasses.asdict)  # the priors' specs
+        write_result(args.json, doc, default=dataclasses.asdict)  # the priors' specs
 
 
 if __name__ == "__main__":

@@ -4,8 +4,7 @@ Whether a joint fit of a backlash sweep (one gear pair, one lubrication, several
 centre distances: the paper's Figs. 10–12) tightens the intervals compared with the single
 recordings. One sweep answers that for one realisation only: rattle is chaotic, the cost is
 rough at the scale of a few per cent of a parameter, and which way one comparison falls
-changes with the realisation (benchmarks/README, "The joint sweep's tightening over many
-sweeps"). This script asks it of many: for each of ``--sweeps`` seeded sweeps
+changes with the realisation. This script asks it of many: for each of ``--sweeps`` seeded sweeps
 (`rattlefit.simulation.synthetic.backlash_sweep`, pair II in boundary lubrication, 10 % at
 8 Hz by default; every recording with its own seed, printed), it identifies each recording
 alone and all of them jointly with the default `FitOptions` (fit seed: the sweep's), and
@@ -17,7 +16,7 @@ information simply added), which says how much a joint fit should gain, roughly:
 one recording carries most of the information (rough profiles, cliffs and rival candidates
 make the singles wider than a parabola, so a joint fit can beat it).
 
-    python benchmarks/sweep_study.py [--sweeps 6] [--seed 0] [--center-distances 65.0 65.4]
+    python studies/sweep_study.py [--sweeps 6] [--seed 0] [--center-distances 65.0 65.4]
                                      [--only K ...] [--refits R] [--json out.json] [--quiet]
                                      [--recording-seeds S ...] [--set FIELD=JSON ...]
 
@@ -36,12 +35,12 @@ import argparse
 import time
 
 import numpy as np
+from common import add_set_argument, set_overrides, write_result
 
 import rattlefit as rf
 from rattlefit.inference.identify import identify
 from rattlefit.inference.options import FitOptions
 from rattlefit.simulation.synthetic import backlash_sweep
-from studies import add_set_argument, set_overrides, write_json
 
 SHARED = ("film_half_length", "drag_torque", "viscosity")
 
@@ -152,7 +151,7 @@ def main() -> None:
     if args.recording_seeds and (len(args.recording_seeds) != len(cds) or args.sweeps != 1):
         ap.error("--recording-seeds: one seed per centre distance, with --sweeps 1")
     print(
-        f"{rf.use_cpu_cores()} JAX device(s); seed {args.seed}; centre distances {cds} mm; "
+        f"{rf.configure().devices} JAX device(s); seed {args.seed}; centre distances {cds} mm; "
         f"FitOptions overrides {overrides}"
     )
     rng = np.random.default_rng(args.seed)
@@ -188,7 +187,7 @@ def main() -> None:
         )
     if args.json:
         doc = {"options": overrides, "seed": args.seed, "center_distances": cds, "sweeps": rows}
-        write_json(args.json, doc)
+        write_result(args.json, doc)
 
 
 if __name__ == "__main__":

@@ -13,9 +13,9 @@ The checks here: the T_b interval two-sided and at most a factor of 2 wide; the 
 interval at least 3× narrower, in log, than the band PSDs alone give; with h_min known to 10 %,
 ``a`` two-sided and at most a factor of 2 wide.
 
-    python benchmarks/headline_point.py [--from DIR] [--json out.json]
+    python studies/headline_point.py [--from DIR] [--json out.json]
 
-``--from DIR`` (default ``benchmarks/results/raw/headline``) keeps each identify JSON there,
+``--from DIR`` (default ``studies/results/raw/headline``) keeps each identify JSON there,
 named ``<file>_<variant>.json``, and reads those present instead of running them.
 """
 
@@ -25,10 +25,11 @@ import argparse
 import math
 from pathlib import Path
 
+from common import head_commit, identified, write_result
+
 from rattlefit.physics.geometry import table2_pair
 from rattlefit.physics.model import DEFAULT_MIN_FILM, squeeze_momentum
 from rattlefit.reproducibility import platform_info
-from studies import head_commit, identified, write_json
 
 ROOT = Path(__file__).resolve().parents[1]
 FILES = {
@@ -149,7 +150,7 @@ def check_phrase(label: str, v: dict, rows: list[dict]) -> str:
 
 
 def result_document(rows: list[dict]) -> dict:
-    """The benchmark result file (``benchmarks/results/``) of ``rows``."""
+    """The result file (``studies/results/``) of ``rows``."""
     c = checks(rows)
     held = all(p["truth_inside"] for r in rows for p in r["parameters"].values())
     met = [
@@ -175,7 +176,7 @@ def result_document(rows: list[dict]) -> dict:
         else ("met: " + ", ".join(met) if met else "missed"),
         "measured": "rattlefit identify FILE --features F [--prior min_film=2e-6:0.1] with the "
         "default options, seed 0; the group's truth takes the paper's h_min, 2 µm",
-        "command": "python benchmarks/headline_point.py --json OUT",
+        "command": "python studies/headline_point.py --json OUT",
         "checks": c,
         "results": rows,
         "platform": platform_info(),
@@ -185,14 +186,14 @@ def result_document(rows: list[dict]) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--from", dest="directory", default="benchmarks/results/raw/headline")
+    ap.add_argument("--from", dest="directory", default="studies/results/raw/headline")
     ap.add_argument("--json")
     args = ap.parse_args()
     directory = Path(args.directory).resolve()
     directory.mkdir(parents=True, exist_ok=True)
     rows = study(directory, print)
     if args.json:
-        write_json(args.json, result_document(rows))
+        write_result(args.json, result_document(rows))
 
 
 if __name__ == "__main__":
