@@ -1,22 +1,31 @@
-"""Rewrite the results tables of the README and docs/performance.md from the result files in
-benchmarks/results/.
+"""Rewrite the results tables of the README and docs/performance.md from the result files, and
+check that every figure the README shows is true of the code.
 
-Each ``benchmarks/results/*.json`` holds one benchmark: ``what`` it measures, a one-line
-``summary`` of the latest figures (the table shows its first clause), the ``aim`` and
-``verdict``, ``order`` (its row's place) and, for the few rows the README shows,
-``headline: true``. This script renders them as Markdown tables, every result in
-docs/performance.md and the headline ones in the README, each between the page's markers
+Each ``benchmarks/results/*.json`` and ``studies/results/*.json`` with a one-line string
+``summary`` is one row: ``what`` it measures, the ``summary`` of its figures (the table shows
+its first clause), the ``aim`` and ``verdict``, ``order`` (its row's place) and, for the rows
+the README shows, ``headline: true``. Files whose ``summary`` is not a string (raw study
+output) are not tabled.
+
+**Freshness.** A result is *current* when its ``commit`` (the commit it was measured at)
+descends from the last change to the paths it declares in ``measures`` (default ``["src"]``:
+anything in the package), uncommitted changes to them included; otherwise it is *stale*.
+docs/performance.md lists every result with its state; the README shows only the current
+headline results, so a figure it shows was measured on the code it describes. A stale result
+is fixed by re-running its command, never by editing it.
+
+Each table sits between the page's markers
 
     <!-- results:begin -->
     <!-- results:end -->
 
-replacing what was there. Each page is written through a temporary file in its directory that
-is then renamed over it, so an interrupted run leaves the old page intact.
+and is written through a temporary file renamed over the page.
 
     python benchmarks/readme_table.py            # rewrite the tables
-    python benchmarks/readme_table.py --check    # exit 1 if a table is stale
+    python benchmarks/readme_table.py --check    # exit 1 if a table is not what the files and
+                                                 # the history give (run in the tests)
 
-Standard library only.
+Needs git and the repository's history. Standard library only.
 """
 
 from __future__ import annotations
@@ -24,17 +33,20 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "benchmarks" / "results"
+RESULT_DIRS = (ROOT / "benchmarks" / "results", ROOT / "studies" / "results")
 README = ROOT / "README.md"
 PERFORMANCE = ROOT / "docs" / "performance.md"
 BEGIN = "<!-- results:begin -->"
 END = "<!-- results:end -->"
 REQUIRED = ("what", "summary", "aim", "verdict", "commit", "platform")
+#: What a result measures when it does not say: the whole package.
+DEFAULT_MEASURES = ("src",)
 
 
 def _cell(text: object) -> str:
@@ -42,17 +54,50 @@ def _cell(text: object) -> str:
     return " ".join(str(text).split()).replace("|", "\\|")
 
 
-def load_results(directory: Path) -> list[tuple[str, dict]]:
-    """The result files of ``directory`` as (file name, document), in table order."""
+def load_results(directories, root: Path = ROOT) -> list[tuple[str, dict]]:
+    """The tabled result files of ``directories`` as (path relative to ``root``, document), in
+    table order. Raises ValueError naming the file and the missing fields."""
     docs = []
-    for path in sorted(directory.glob("*.json")):
-        doc = json.loads(path.read_text(encoding="utf-8"))
-        missing = [k for k in REQUIRED if k not in doc]
-        if missing:
-            raise ValueError(f"{path}: missing field(s) {', '.join(missing)}")
-        docs.append((path.name, doc))
+    for directory in directories:
+        for path in sorted(Path(directory).glob("*.json")):
+            doc = json.loads(path.read_text(encoding="utf-8"))
+            if not isinstance(doc.get("summary"), str):
+                continue
+            missing = [k for k in REQUIRED if k not in doc]
+            if missing:
+                raise ValueError(f"{path}: missing field(s) {', '.join(missing)}")
+            docs.append((path.relative_to(root).as_posix(), doc))
     docs.sort(key=lambda item: (item[1].get("order", 1_000), item[0]))
     return docs
+
+
+def git(*args: str, root: Path = ROOT) -> subprocess.CompletedProcess:
+    return subprocess.run(["git", *args], cwd=root, capture_output=True, text=True, check=False)
+
+
+def last_change(paths, root: Path = ROOT) -> str:
+    """The last commit that changed ``paths``, or "worktree" when they have uncommitted
+    changes. Raises ValueError when git cannot tell."""
+    if git("status", "--porcelain", "--", *paths, root=root).stdout.strip():
+        return "worktree"
+    out = git("log", "-1", "--format=%h", "--", *paths, root=root)
+    if out.returncode != 0 or not out.stdout.strip():
+        raise ValueError(f"git cannot tell when {', '.join(paths)} last changed: {out.stderr}")
+    return out.stdout.strip()
+
+
+def state(doc: dict, name: str, root: Path = ROOT) -> str:
+    """"current", or "stale: ..." saying what changed after the result's commit."""
+    paths = tuple(doc.get("measures", DEFAULT_MEASURES))
+    changed = last_change(paths, root)
+    commit = str(doc["commit"])
+    if git("cat-file", "-e", f"{commit}^{{commit}}", root=root).returncode != 0:
+        raise ValueError(f"{name}: its commit {commit} is not in this repository's history")
+    if changed != "worktree":
+        if git("merge-base", "--is-ancestor", changed, commit, root=root).returncode == 0:
+            return "current"
+    where = "uncommitted changes" if changed == "worktree" else changed
+    return f"stale: {', '.join(paths)} changed ({where}) after {commit}"
 
 
 def headline(summary: str) -> str:
@@ -69,20 +114,16 @@ def headline(summary: str) -> str:
     return summary
 
 
-def render(docs: list[tuple[str, dict]], link_prefix: str = "benchmarks/results/") -> str:
-    """The Markdown table of ``docs``, markers excluded."""
-    lines = [
-        "| what | latest result | aim | verdict | file |",
-        "|---|---|---|---|---|",
-    ]
-    for name, doc in docs:
-        row = (
-            _cell(doc["what"]),
-            _cell(headline(doc["summary"])),
-            _cell(doc["aim"]),
-            _cell(doc["verdict"]),
-            f"[{name}]({link_prefix}{name})",
-        )
+def render(rows, link_prefix: str = "", with_state: bool = False) -> str:
+    """The Markdown table of ``rows`` ((path, document, state)), markers excluded."""
+    head = ["what", "latest result", "aim", "verdict"] + (["state"] if with_state else [])
+    lines = ["| " + " | ".join([*head, "file"]) + " |", "|" + "---|" * (len(head) + 1)]
+    for name, doc, st in rows:
+        row = [_cell(doc["what"]), _cell(headline(doc["summary"])), _cell(doc["aim"])]
+        row.append(_cell(doc["verdict"]))
+        if with_state:
+            row.append(_cell(st))
+        row.append(f"[{Path(name).name}]({link_prefix}{name})")
         lines.append("| " + " | ".join(row) + " |")
     return "\n".join(lines)
 
@@ -92,7 +133,7 @@ def replace_table(text: str, table: str) -> str:
     start = text.find(BEGIN)
     stop = text.find(END)
     if start < 0 or stop < 0 or stop < start:
-        raise ValueError(f"the README needs the markers {BEGIN} and {END}, in that order")
+        raise ValueError(f"the page needs the markers {BEGIN} and {END}, in that order")
     head = text[: start + len(BEGIN)]
     return f"{head}\n{table}\n{text[stop:]}"
 
@@ -111,11 +152,11 @@ def atomic_write(path: Path, text: str) -> None:
         raise
 
 
-def pages(readme: Path, performance: Path, docs) -> list[tuple[Path, str]]:
-    """Each page and its table: the headline results in the README, every one in
-    docs/performance.md."""
-    top = [(n, d) for n, d in docs if d.get("headline")]
-    return [(readme, render(top)), (performance, render(docs, "../benchmarks/results/"))]
+def pages(readme: Path, performance: Path, rows) -> list[tuple[Path, str]]:
+    """Each page and its table: the current headline results in the README, every result
+    with its state in docs/performance.md."""
+    top = [r for r in rows if r[1].get("headline") and r[2] == "current"]
+    return [(readme, render(top)), (performance, render(rows, "../", with_state=True))]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -123,27 +164,30 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--check", action="store_true", help="exit 1 if a table is stale")
     parser.add_argument("--readme", type=Path, default=README)
     parser.add_argument("--performance", type=Path, default=PERFORMANCE)
-    parser.add_argument("--results", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
 
-    stale = 0
+    outdated = 0
     try:
-        docs = load_results(args.results)
-        for page, table in pages(args.readme, args.performance, docs):
+        rows = [(n, d, state(d, n)) for n, d in load_results(RESULT_DIRS)]
+        for page, table in pages(args.readme, args.performance, rows):
             text = page.read_text(encoding="utf-8")
             updated = replace_table(text, table)
             if updated == text:
                 print(f"{page}: the results table is up to date")
             elif args.check:
-                print(f"{page}: the results table is stale; run benchmarks/readme_table.py")
-                stale = 1
+                print(f"{page}: the results table is not what the result files and the git "
+                      "history give; run benchmarks/readme_table.py")  # fmt: skip
+                outdated = 1
             else:
                 atomic_write(page, updated)
                 print(f"rewrote the results table of {page}")
+        for name, _, st in rows:
+            if st != "current":
+                print(f"{name}: {st}")
     except (OSError, ValueError) as exc:
         print(f"readme_table: {exc}", file=sys.stderr)
         return 2
-    return stale
+    return outdated
 
 
 if __name__ == "__main__":

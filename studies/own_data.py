@@ -90,7 +90,7 @@ def main() -> None:
     ap.add_argument("--keep", action="store_true", help="keep the other rows of the result file")
     ap.add_argument("--json", default=str(ROOT / "studies" / "results" / "own_data.json"))
     args = ap.parse_args()
-    devices = rf.use_cpu_cores()
+    devices = rf.configure().devices
     makers = {
         "companion": ("boundary + oil-jet companion", companion),
         "sweep": ("backlash sweep", sweep),
@@ -122,6 +122,7 @@ def main() -> None:
 def write(args, rows: list, devices: int) -> None:
     """Write the result file (atomically) from the fits so far."""
     n_held, total = held(rows)
+    n_fitting = sum(r["p_value"] > 0.01 for r in rows)
     commit = head_commit()
     doc = {
         "what": "the learned likelihood on rattlefit's own data: notebook 2's joint fits at "
@@ -136,7 +137,9 @@ def write(args, rows: list, devices: int) -> None:
         "platform": rf.platform_info(),
         "devices": devices,
         "summary": f"{n_held}/{total} intervals hold their truth; p > 0.01 in "
-        f"{sum(r['p_value'] > 0.01 for r in rows)}/{len(rows)} fits",
+        f"{n_fitting}/{len(rows)} fits",
+        "aim": "every interval holds its truth, χ² consistent with its dof (p > 0.01)",
+        "verdict": "met" if n_held == total and n_fitting == len(rows) else "not met",
         "rows": rows,
     }
     write_result(args.json, doc)
