@@ -1,15 +1,25 @@
-"""The golden pin: outputs that a change of structure must not move, to the last bit.
+"""The golden pin: outputs that a change of structure must not move.
 
-``compute()`` runs three fixed pipelines on the bundled ``data/`` files and returns their JSON
-documents with wall times removed:
+Two parts:
+
+- **Within rounding, everywhere** (``compute_stable()``, pinned in ``tests/pins/stable.json``):
+  the stages that are not chaotic — each bundled recording's feature vector, 50 ms of
+  simulated motion (one solve and a lockstep batch) and the squeeze momentum's closed form —
+  compared with tolerances that float64 rounding on another CPU or JAX version stays within
+  (:data:`TOLERANCES`).
+- **To the last bit, per platform**: ``compute()`` runs three fixed pipelines on the bundled
+  ``data/`` files and returns their JSON documents with wall times removed:
 
 - ``identify`` with ``FitOptions.quick(seed=0)`` on the bundled pair II boundary file;
 - a diagnosis from a quick fit (``FitOptions.quick(seed=0)``) trying two effects;
 - a 20-step emcee chain started from the first identification.
 
-A seeded result depends on the platform (JAX version, backend, device count, CPU and its
-instruction-set cap), so a pin is recorded per platform, in ``tests/pins/<key>.json``.
-Record one on a new platform with ``python tests/golden_pin.py --record``.
+  A seeded result depends on the platform (JAX version, backend, device count, CPU and its
+  instruction-set cap): rattle is chaotic, so a last-bit difference grows into another
+  realisation. These pins are recorded per platform, in ``tests/pins/<key>.json``.
+
+Record with ``python tests/golden_pin.py --record`` (this platform's exact pin) or
+``--record-stable`` (the pin within rounding).
 """
 
 from __future__ import annotations
@@ -20,8 +30,9 @@ import sys
 from pathlib import Path
 
 import jax
+import numpy as np
 
-import rattlefit  # noqa: F401  (caps the CPU instruction set before JAX starts)
+import rattlefit
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 PINS = Path(__file__).resolve().parent / "pins"
@@ -33,6 +44,19 @@ DIAGNOSE_EFFECTS = ("flank_friction", "runout")
 CHAIN_STEPS = 20
 CHAIN_WALKERS = 16
 SEED = 0
+#: The within-rounding pin's file.
+STABLE = PINS / "stable.json"
+#: Simulated time of the pinned motion (s): short enough that the chaos has not grown a
+#: rounding difference into another trajectory.
+MOTION_S = 0.05
+#: Each stable output's (rtol, atol), in its unit. Features: logs of Welch PSDs of 30,000
+#: samples, whose float64 rounding error is ~1e-13 relative; a change of the feature code moves
+#: them by 1e-6 or more. Motion (m): a rounding difference can flip one of the adaptive
+#: solver's accept/reject decisions, which moves the state by at most its local tolerance
+#: (rtol·|q| + atol ≈ 1.4e-9 m); the impacts of 50 ms amplify a difference about a hundred
+#: times (a 1 % change of the drag torque moves q by 9e-8 m at 20 ms and 3e-6 m at 50 ms),
+#: so 3e-7 m, against a backlash of 4e-4 m. Squeeze momentum: a closed form, rounding only.
+TOLERANCES = {"features": (1e-9, 1e-12), "motion": (0.0, 3e-7), "momentum": (1e-12, 0.0)}
 #: keys whose values are wall-clock times or where the platform is recorded
 UNPINNED = {"wall_time_s", "wall_time", "platform", "elapsed_s"}
 
@@ -100,6 +124,43 @@ def compute_pipelines() -> dict:
     return json.loads(json.dumps(out))  # what a JSON file holds: floats by their repr
 
 
+def compute_stable() -> dict:
+    """The outputs pinned within rounding, keyed ``<kind>/<name>`` (kinds: the keys of
+    :data:`TOLERANCES`), each a list of floats."""
+    from rattlefit import FitOptions, RattleParams, read_recording, simulate, simulate_batch
+    from rattlefit.inference import rig
+    from rattlefit.inference.problem import problem_from
+    from rattlefit.simulation.solve import broadcast_params
+
+    out = {}
+    for path in sorted(DATA.glob("*.h5")):
+        problem, _, _ = problem_from([read_recording(path)], FitOptions.quick(seed=SEED))
+        out[f"features/{path.name}"] = np.asarray(problem.data).ravel().tolist()
+    s = rig.setup(read_recording(DATA / FILES[0]))
+    truth = RattleParams(0.085e-3, 0.025, 0.4942, s.geometry.backlash)
+    one = simulate(s.model, truth, s.drive, duration=MOTION_S, burn_in=0.0)
+    out["motion/simulate"] = np.asarray(one.q).tolist()
+    films = RattleParams([0.02e-3, 0.085e-3, 0.3e-3, 1e-3], 0.025, 0.4942, s.geometry.backlash)
+    batch = simulate_batch(
+        s.model, broadcast_params(films, 4), s.drive, batch="lockstep", duration=MOTION_S,
+        burn_in=0.0,
+    )  # fmt: skip
+    out["motion/lockstep"] = np.asarray(batch.q).ravel().tolist()
+    a, mu, h = np.meshgrid([1e-5, 1e-4, 1e-3], [0.05, 0.5], [1e-6, 5e-6], indexing="ij")
+    m = rattlefit.squeeze_momentum(a.ravel(), mu.ravel(), h.ravel(), 0.01, 0.012)
+    out["momentum/grid"] = np.asarray(m).tolist()
+    return out
+
+
+def record_stable() -> Path:
+    PINS.mkdir(exist_ok=True)
+    doc = {"tolerances": TOLERANCES, "outputs": compute_stable()}
+    tmp = STABLE.with_suffix(".tmp")
+    tmp.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
+    tmp.replace(STABLE)
+    return STABLE
+
+
 def pin_path() -> Path:
     return PINS / f"{platform_key()[0]}.json"
 
@@ -116,7 +177,8 @@ def record() -> Path:
 
 
 if __name__ == "__main__":
-    if sys.argv[1:] != ["--record"]:
-        sys.exit("usage: python tests/golden_pin.py --record")
-    jax.devices()  # one device, as under pytest-xdist
-    print(record())
+    if sys.argv[1:] not in (["--record"], ["--record-stable"]):
+        sys.exit("usage: python tests/golden_pin.py --record | --record-stable")
+    rattlefit.configure(cpu_cores=1)  # one device, as under pytest-xdist
+    jax.devices()
+    print(record() if sys.argv[1] == "--record" else record_stable())

@@ -680,3 +680,24 @@ def test_pairs_start_from_the_first_effect_fitted_until_settled(monkeypatch, set
         assert [p.name for p in pairs] == ["flank_friction+mesh_damping"]
         assert started[0][0].chi2_with == 1966.0  # judged against the settled single
         np.testing.assert_array_equal(started[0][1], np.ones(3))  # and started from it
+
+
+# The independent simulator's recordings (not rattlefit's model): a clean one, and one with
+# run-out of the driven wheel. Each is diagnosed with the default options, every candidate of
+# the catalogue offered, as a user would; the run-out is found by the encoders' model-free
+# test, so its verdict does not hang on a band fit.
+SHARED_CLEAN = "pairI_dry_65.4_10pct_16Hz"
+SHARED_RUNOUT = "pairI_boundary_65.8_20pct_16Hz_runout"
+
+
+def test_a_clean_independent_recording_is_given_none(shared_recordings, shared_truth):
+    assert shared_truth[SHARED_CLEAN]["unmodelled_effects"] == []
+    diag = diagnose([rf.read_recording(shared_recordings / f"{SHARED_CLEAN}.h5")])
+    assert diag.verdict.kind == "none", diag.to_json()["sentence"]
+
+
+def test_an_independent_recording_with_runout_is_given_runout(shared_recordings, shared_truth):
+    assert "runout" in " ".join(shared_truth[SHARED_RUNOUT]["unmodelled_effects"])
+    diag = diagnose([rf.read_recording(shared_recordings / f"{SHARED_RUNOUT}.h5")])
+    doc = diag.to_json()
+    assert doc["verdict"] == "runout", doc["sentence"]

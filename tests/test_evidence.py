@@ -18,8 +18,9 @@ from rattlefit.features.drift import drift_evidence, window_length
 from rattlefit.features.orders import contact_events, drive_order_evidence, runout_evidence
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.physics import effects as fx
+from rattlefit.testing.shared import recordings_dir
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "recordings"
+SHARED = recordings_dir(Path(__file__).resolve().parents[1])
 FAMILY = 0.01  # the diagnosis' default family-wise level
 RECORDING_SEED = 5
 #: the fitted amplitude must hold the injected one within this many standard errors, plus
@@ -110,14 +111,14 @@ def _shared_truth():
     return json.loads(path.read_text()) if path.is_file() else {}
 
 
-@pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/recordings not present")
+@pytest.mark.skipif(not SHARED.is_dir(), reason=f"needs the independent recordings at {SHARED}")
 @pytest.mark.parametrize("name", sorted(_shared_truth()))
 def test_shared_recordings_run_out_is_found_and_nothing_else(name):
     # independent data: each run-out file gets run-out, every other file no finding at all
     truth = _shared_truth()[name]
     path = next(SHARED.glob(f"**/{name}.h5"), None)
     if path is None:
-        pytest.skip(f"{name}.h5 not present under {SHARED}")
+        pytest.skip(f"needs {name}.h5, not under {SHARED}")
     found = findings([rf.read_recording(path)], FAMILY)
     named = {f.effect for f in found if f.significant}
     expected = {"runout"} if "runout" in truth["unmodelled_effects"] else set()

@@ -22,10 +22,11 @@ from rattlefit.io.recording import (
     read_truth,
     write_recording,
 )
+from rattlefit.testing.shared import recordings_dir
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "recordings"
+SHARED = recordings_dir(Path(__file__).resolve().parents[1])
 SHARED_FILES = sorted(SHARED.glob("*.h5")) if SHARED.is_dir() else []
-NO_SHARED = f"shared sample recordings not found in {SHARED}"
+NO_SHARED = f"needs the independent recordings, not at {SHARED}"
 # A clean recording: pair II, boundary lubrication, 16 Hz fluctuation, no unmodelled effects.
 CLEAN_NAME = "pairII_boundary_65.6_20pct_16Hz.h5"
 

@@ -469,7 +469,7 @@ def test_report_refuses_bad_inputs_naming_them(tmp_path):
 
 def test_report_renders_in_a_headless_browser(tmp_path):
     if not CHROMIUM.exists():
-        pytest.skip(f"no headless browser at {CHROMIUM} (apt-get install chromium)")
+        pytest.skip(f"needs a headless browser at {CHROMIUM} (apt-get install chromium)")
     from PIL import Image
 
     from rattlefit.report import write_report
