@@ -87,7 +87,9 @@ def last_change(paths, root: Path = ROOT) -> str:
 
 
 def state(doc: dict, name: str, root: Path = ROOT) -> str:
-    """"current", or "stale: ..." saying what changed after the result's commit."""
+    """"current", or "stale: ..." naming the paths that changed after the result's commit
+    (which commit changed them is left out, so that the state changes only when a result
+    goes stale or is re-measured)."""
     paths = tuple(doc.get("measures", DEFAULT_MEASURES))
     changed = last_change(paths, root)
     commit = str(doc["commit"])
@@ -96,8 +98,7 @@ def state(doc: dict, name: str, root: Path = ROOT) -> str:
     if changed != "worktree":
         if git("merge-base", "--is-ancestor", changed, commit, root=root).returncode == 0:
             return "current"
-    where = "uncommitted changes" if changed == "worktree" else changed
-    return f"stale: {', '.join(paths)} changed ({where}) after {commit}"
+    return f"stale: {', '.join(paths)} changed after {commit}"
 
 
 def headline(summary: str) -> str:
