@@ -42,7 +42,6 @@ class ParameterEstimate:
     bound : when not identified, what the data support: ``"lower"`` or ``"upper"`` (one side
         only), ``"interval"`` (two-sided but wide), ``"prior"`` (mostly the prior's), or
         None (neither side).
-    map_value : the value at the optimum (the same as ``estimate``; kept for old readers).
     would_pin : when not identified, what extra data would pin it
         (:func:`~rattlefit.inference.advice.what_would_pin`); empty otherwise.
     """
@@ -54,7 +53,6 @@ class ParameterEstimate:
     upper: float
     identified: bool
     bound: str | None = None
-    map_value: float | None = None
     would_pin: str = ""
 
     def as_dict(self) -> dict:
@@ -259,7 +257,7 @@ def estimate(spec: ParameterSpec, z: float, lo_z: float, hi_z: float) -> Paramet
     floor = 0.0 if spec.log_sd is None else spec.lower
 
     def result(lo, hi, identified, bound):
-        return ParameterEstimate(spec.name, spec.unit, value, lo, hi, identified, bound, value)
+        return ParameterEstimate(spec.name, spec.unit, value, lo, hi, identified, bound)
 
     if at_top and at_bottom:
         return result(floor, spec.upper, False, None)
@@ -299,7 +297,6 @@ def estimates_of(
         vs.upper * mu0,
         vs.identified,
         vs.bound,
-        vs.map_value * mu0,
     )
     found = {
         k: dataclasses.replace(p, would_pin=what_would_pin(k, list(lubrications), p.identified))

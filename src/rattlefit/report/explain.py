@@ -34,8 +34,6 @@ def estimate_cells(name: str, p: dict) -> tuple[str, str]:
     every parameter had one shows ``—``), a one-sided interval as ``≥ x`` or ``≤ x``."""
     unit = p["unit"]
     value = p.get("estimate")
-    if value is None:
-        value = p.get("map_value")
     estimate = "—" if value is None else shown(value, name, unit)
     if p["bound"] == "lower":
         return estimate, f"≥ {shown(p['lower'], name, unit)}"
