@@ -22,8 +22,9 @@ import sys
 import time
 from pathlib import Path
 
+from rattlefit.testing.results import provenance, write_result
 from rattlefit.testing.shared import recordings_dir
-from suite_report import match, report
+from suite_report import forward_result, match, report
 from suite_steps import (
     DIAGNOSE_RECORDING,
     IDENTIFY_RECORDING,
@@ -31,6 +32,18 @@ from suite_steps import (
     QUICK_RECORDING,
     M,
     run_step,
+)
+
+#: The operating points of the forward comparison: the first seven shared recordings, one of
+#: each regime the paper's figures show.
+FORWARD_POINTS = (
+    "pairII_boundary_65.0_10pct_8Hz",
+    "pairII_boundary_65.4_20pct_16Hz_runout",
+    "pairII_boundary_65.6_20pct_16Hz",
+    "pairII_dry_65.6_20pct_16Hz",
+    "pairII_oiljet_65.6_20pct_16Hz",
+    "pairI_boundary_66.0_20pct_16Hz",
+    "pairI_oiljet_65.4_20pct_8Hz",
 )
 
 
@@ -53,6 +66,14 @@ def main(argv=None) -> int:
         help=f"also time one diagnose() of {DIAGNOSE_RECORDING} (identify + every effect)",
     )
     ap.add_argument("--json", type=Path, help="write all results to this JSON file")
+    ap.add_argument(
+        "--write-results",
+        action="store_true",
+        help="write benchmarks/results/forward.json from this run (with its provenance)",
+    )
+    ap.add_argument(
+        "--names", nargs="+", default=list(FORWARD_POINTS), help="the shared recordings to run"
+    )
     args = ap.parse_args(argv)
 
     if not recordings_dir().is_dir():
@@ -61,7 +82,7 @@ def main(argv=None) -> int:
     if args.quick:
         names = [QUICK_RECORDING]
     else:
-        names = sorted(p.stem for p in recordings_dir().glob("*.h5"))
+        names = args.names
     reps = 1 if args.quick else 3
 
     t0 = time.perf_counter()
@@ -106,6 +127,13 @@ def main(argv=None) -> int:
 
     text = report(res)
     print(text)
+    if args.write_results:
+        import rattlefit
+
+        rattlefit.configure()  # the platform as the steps had it (one device per core)
+        doc = {**forward_result(res), **provenance()}
+        write_result(Path(__file__).parent / "results" / "forward.json", doc)
+        print("wrote benchmarks/results/forward.json")
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(res, indent=1, default=float))
