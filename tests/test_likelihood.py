@@ -19,11 +19,13 @@ from scipy import stats
 import rattlefit as rf
 from rattlefit.inference.group import flanks
 from rattlefit.inference.parameters import ParameterSpec
+from rattlefit.inference.posterior import LearnedLogPosterior
 from rattlefit.inference.problem import problem_from
 from rattlefit.io.recording import read_truth
 from rattlefit.likelihood import DensityOptions, LearnedLikelihood, fit_density
 from rattlefit.likelihood.design import prior_box, sobol_design, z_of_unit
 from rattlefit.likelihood.estimate import CHI2_95, fit_learned
+from rattlefit.likelihood.learn import best_points
 from rattlefit.likelihood.store import read_learned, write_learned
 from rattlefit.likelihood.training import mean_value_and_grad, pairwise_sum
 from rattlefit.physics.model import squeeze_momentum
@@ -149,6 +151,33 @@ def test_learned_profile_interval_matches_the_exact_gaussian_one(seed):
     assert np.log(float(spec.value(prof.lower))) < truth < np.log(float(spec.value(prof.upper)))
     assert prof.delta.min() > -1e-3  # no profile point below the optimum
     assert fit.p_value > 1e-3
+
+
+def test_a_fit_on_other_data_compiles_nothing_new():
+    # every fit of a study or a campaign has its own data: a program compiled per likelihood
+    # instance would pile up compiled code until the process runs out of memory maps
+    like, truth_u, _ = linear_gaussian_likelihood(0)
+    posterior = LearnedLogPosterior(like.specs, like)
+    compiles = []
+
+    def listen(event, duration, **_):
+        if event == "/jax/core/compile/backend_compile_duration":
+            compiles.append(event)
+
+    def one_fit(data):
+        other = like.replace_data(data)
+        fit_learned(other, best_points(other, np.array([truth_u, [0.5, 0.5]]), 2), [0])
+        LearnedLogPosterior(other.specs, other).log_likelihood(np.zeros((4, 2)))
+
+    one_fit(like.data)  # compiles what a fit needs
+    posterior.log_likelihood(np.zeros((4, 2)))
+    other = like.data + 0.1
+    jax.monitoring.register_event_duration_secs_listener(listen)
+    try:
+        one_fit(other)
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listen)
+    assert not compiles, f"{len(compiles)} programs compiled again for new data"
 
 
 BOUNDARY = "data/pairII_boundary_65.6_20pct_16Hz.h5"

@@ -41,13 +41,12 @@ from pathlib import Path
 
 import emcee
 import h5py
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ..errors import RattlefitError
 from ..io.recording import Recording
-from ..likelihood.model import LearnedLikelihood
+from ..likelihood.model import LearnedLikelihood, batch_chi2_terms
 from ..likelihood.store import GROUP, Learned, read_group, write_group
 from ..reproducibility import platform_info
 from . import arviz_io
@@ -160,12 +159,11 @@ class LearnedLogPosterior(LogPosterior):
     def __init__(self, specs: Sequence[ParameterSpec], like: LearnedLikelihood):
         self.specs = tuple(specs)
         self.like = like
-        self.terms = jax.jit(jax.vmap(like.chi2_terms))
         self.n_evaluations = 0
 
     def log_likelihood(self, zs) -> np.ndarray:
         zs = np.atleast_2d(np.asarray(zs, dtype=float))
-        chi2, logdet = (np.asarray(x) for x in self.terms(jnp.asarray(zs)))
+        chi2, logdet = (np.asarray(x) for x in batch_chi2_terms(self.like, jnp.asarray(zs)))
         self.n_evaluations += len(zs)
         return -0.5 * np.sum(chi2 + logdet, axis=1)
 

@@ -24,7 +24,7 @@ from scipy import stats
 from ..inference.profile import CHI2_1_95 as CHI2_95
 from ..physics.model import squeeze_momentum
 from .design import EDGE
-from .model import LearnedLikelihood
+from .model import LearnedLikelihood, cost_hessian
 
 #: A profile point this far below the optimum's cost means the optimum was not the least:
 #: the fit starts again from it.
@@ -155,7 +155,7 @@ def laplace_covariance(like: LearnedLikelihood, z) -> np.ndarray:
     """The Laplace covariance in ``z`` (P, P): the inverse of half the cost's Hessian (the
     cost is −2 log density), each eigenvalue floored at 1/:data:`MAX_SD_Z`² so that it is
     positive definite where the cost is flat or not convex."""
-    h = np.asarray(jax.hessian(like.cost)(jnp.asarray(z)))
+    h = np.asarray(cost_hessian(like, jnp.asarray(z)))
     info = 0.25 * (h + h.T)
     w, v = np.linalg.eigh(info)
     w = np.maximum(w, 1.0 / MAX_SD_Z**2)

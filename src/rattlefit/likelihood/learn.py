@@ -24,7 +24,7 @@ import numpy as np
 from ..inference.problem import Problem
 from .density import DensityOptions, fit_density
 from .design import prior_box, simulate_design, sobol_design, unit_of_z, z_of_unit
-from .model import LearnedLikelihood
+from .model import LearnedLikelihood, batch_cost, batch_log_density
 
 
 @dataclasses.dataclass(frozen=True)
@@ -130,7 +130,6 @@ def posterior_draws(
     """``n`` design points (n, P) in ``u`` drawn from the learned posterior with the
     likelihood raised to ``tempering``: an ensemble sampler started at ``starts`` (z, at least
     one), the second half of its chain thinned to ``n`` points."""
-    log_density = jax.jit(jax.vmap(lambda z: like.log_density(z, tempering)))
     rng = np.random.default_rng(seed)
     starts = np.atleast_2d(starts)
     p0 = starts[rng.integers(len(starts), size=options.walkers)]
@@ -138,7 +137,7 @@ def posterior_draws(
     sampler = emcee.EnsembleSampler(
         options.walkers,
         p0.shape[1],
-        lambda zs: np.asarray(log_density(jnp.asarray(zs))),
+        lambda zs: np.asarray(batch_log_density(like, jnp.asarray(zs), tempering)),
         vectorize=True,
     )
     sampler.random_state = np.random.RandomState(int(rng.integers(2**31))).get_state()
@@ -151,7 +150,7 @@ def posterior_draws(
 def best_points(like: LearnedLikelihood, u, k: int) -> np.ndarray:
     """The ``k`` design points (z) of lowest learned cost."""
     z = z_of_unit(u)
-    costs = np.asarray(jax.jit(jax.vmap(like.cost))(jnp.asarray(z)))
+    costs = np.asarray(batch_cost(like, jnp.asarray(z)))
     costs = np.where(np.isfinite(costs), costs, np.inf)
     return z[np.argsort(costs)[:k]]
 

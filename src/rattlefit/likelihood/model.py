@@ -52,6 +52,7 @@ class LearnedLikelihood(eqx.Module):
         u = jax.nn.sigmoid(z)
         return jnp.stack([d.residual(y, u) for d, y in zip(self.densities, self.data, strict=True)])
 
+    @eqx.filter_jit
     def chi2_terms(self, z):
         """Each recording's ``|r|²`` (R,) and log-volume term (R,) at ``z``
         (:meth:`~rattlefit.likelihood.density.FeatureDensity.chi2_terms`)."""
@@ -69,16 +70,19 @@ class LearnedLikelihood(eqx.Module):
         ]
         return jnp.stack(rows) if rows else jnp.zeros((0,))
 
+    @eqx.filter_jit
     def cost(self, z):
         """−2 log posterior density in the parameters' logs, less its constant."""
         chi2, volume = self.chi2_terms(z)
         return jnp.sum(chi2 + volume) + jnp.sum(self.prior_rows(z) ** 2)
 
+    @eqx.filter_jit
     def chi2(self, z):
         """The recordings' summed ``|r|²`` at ``z``: χ² on R·F degrees of freedom where the
         model holds."""
         return jnp.sum(self.chi2_terms(z)[0])
 
+    @eqx.filter_jit
     def log_density(self, z, tempering: float = 1.0):
         """Log posterior density in ``z`` itself (the coordinate map's Jacobian included),
         with the likelihood raised to ``tempering``; for samplers."""
@@ -95,3 +99,33 @@ class LearnedLikelihood(eqx.Module):
     @property
     def n_features(self) -> int:
         return int(self.data.size)
+
+
+# The methods above and these evaluations are compiled once per shape and reused by every
+# likelihood of the same structure (the likelihood is an argument, not a constant of the
+# program): a fit after fit in one process then compiles nothing new, where a program per
+# likelihood would pile up compiled code until the process runs out of memory maps.
+
+
+@eqx.filter_jit
+def batch_cost(like: LearnedLikelihood, z):
+    """:meth:`LearnedLikelihood.cost` at each row of ``z`` (K, P): (K,)."""
+    return jax.vmap(like.cost)(z)
+
+
+@eqx.filter_jit
+def batch_log_density(like: LearnedLikelihood, z, tempering: float):
+    """:meth:`LearnedLikelihood.log_density` at each row of ``z`` (K, P): (K,)."""
+    return jax.vmap(lambda zz: like.log_density(zz, tempering))(z)
+
+
+@eqx.filter_jit
+def cost_hessian(like: LearnedLikelihood, z):
+    """The Hessian (P, P) of :meth:`LearnedLikelihood.cost` at ``z`` (P,)."""
+    return jax.hessian(like.cost)(z)
+
+
+@eqx.filter_jit
+def batch_chi2_terms(like: LearnedLikelihood, z):
+    """:meth:`LearnedLikelihood.chi2_terms` at each row of ``z`` (K, P): two (K, R) arrays."""
+    return jax.vmap(like.chi2_terms)(z)
