@@ -23,6 +23,7 @@ from rattlefit.inference.posterior import LearnedLogPosterior
 from rattlefit.inference.problem import problem_from
 from rattlefit.io.recording import read_truth
 from rattlefit.likelihood import DensityOptions, LearnedLikelihood, fit_density
+from rattlefit.likelihood.check import FAR_RECORDING
 from rattlefit.likelihood.design import prior_box, sobol_design, z_of_unit
 from rattlefit.likelihood.estimate import CHI2_95, fit_learned
 from rattlefit.likelihood.learn import best_points
@@ -260,6 +261,10 @@ def test_the_learned_likelihood_is_checked_against_fresh_simulations(learned_fit
         # within a factor 1.5, everywhere checked
         assert 1 / 1.5 < c["z_rms"] < 1.5, c
         assert c["passed"]
+    # the recording, rattlefit's own, looks like the simulations at its optimum (about 1 sd
+    # over the features at its truth; a spurious optimum puts it tens of sd away)
+    (optimum,) = [c for c in checks if c["label"] == "optimum"]
+    assert optimum["recording_distance"] < FAR_RECORDING, optimum
     assert result.to_json()["fit"]["likelihood"]["method"] == "learned"
 
 

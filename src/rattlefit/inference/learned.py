@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import RattlefitError
 from ..io.recording import Recording
 from ..likelihood import LearningOptions, learn_likelihood
-from ..likelihood.check import check_points
+from ..likelihood.check import FAR_RECORDING, check_points
 from ..likelihood.estimate import CHI2_95, LearnedFit, LogMomentum, fit_learned, profile_derived
 from ..likelihood.learn import best_points
 from ..likelihood.store import Learned, read_learned, test_point_key
@@ -213,6 +213,12 @@ def fit_and_check(problem: Problem, learned: Learned, options: FitOptions, seed,
     failed = [c.label for c in checks if not c.passed]
     if failed:
         say(f"  the learned likelihood misses the simulator at: {', '.join(failed)}")
+    for c in checks:
+        if c.label == "optimum" and c.recording_distance > FAR_RECORDING:
+            say(
+                f"  recording {c.recording} lies {c.recording_distance:.1f} sd from the "
+                "simulations at the optimum: the optimum is not where the simulator puts it"
+            )
     return fit, checks
 
 

@@ -13,6 +13,12 @@ distribution there. Three numbers per point and recording:
   units of the learned spread.
 * ``spread_ratio``: the median over features of the residuals' sd: the simulations' spread
   over the learned spread.
+* ``recording_distance``: the rms over features of the recording's distance to the
+  simulations' mean, in units of their sd (with the floor): about 1 where the recording could
+  have come from this point. The learned likelihood can misjudge a recording far outside what
+  it was trained on at a point; an optimum whose simulations lie more than
+  :data:`FAR_RECORDING` from the recording is then not where the simulator puts it (or the
+  model misses the recording), and identify warns.
 
 A point passes while ``z_rms`` is within a factor :data:`MAX_Z_FACTOR` of 1.
 """
@@ -31,12 +37,16 @@ from .model import LearnedLikelihood
 
 #: A point passes while its ``z_rms`` is within this factor of 1.
 MAX_Z_FACTOR = 1.5
+#: A recording farther than this (rms sd over the features) from the simulations at the
+#: optimum is not where the simulator puts it; at its own parameters it is about 1.
+FAR_RECORDING = 3.0
 
 
 @dataclasses.dataclass(frozen=True)
 class PointCheck:
-    """One point's check: its label, the recording, ``z_rms``, the learned mean's error and
-    the spread ratio (module docstring), and the number of simulations."""
+    """One point's check: its label, the recording, ``z_rms``, the learned mean's error, the
+    spread ratio and the recording's distance (module docstring), and the number of
+    simulations."""
 
     label: str
     recording: int
@@ -44,6 +54,7 @@ class PointCheck:
     mean_error: float
     spread_ratio: float
     simulations: int
+    recording_distance: float
 
     @property
     def passed(self) -> bool:
@@ -75,7 +86,9 @@ def check_point(
         z_rms = float(np.sqrt(np.mean(res**2)))
         mean_error = float(np.sqrt(max(np.mean(res.mean(axis=0) ** 2) - 1 / n, 0.0)))
         ratio = float(np.median(res.std(axis=0, ddof=1)))
-        out.append(PointCheck(label, r, z_rms, mean_error, ratio, n))
+        sd = np.sqrt(np.maximum(sims.var(axis=0, ddof=1), np.asarray(density.floor)))
+        distance = float(np.sqrt(np.mean(((np.asarray(like.data[r]) - sims.mean(0)) / sd) ** 2)))
+        out.append(PointCheck(label, r, z_rms, mean_error, ratio, n, distance))
     return out
 
 
