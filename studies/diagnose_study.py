@@ -42,9 +42,10 @@ import rattlefit as rf
 from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
 from rattlefit.diagnosis.evidence import POINTS_TO, findings
 from rattlefit.testing.diagnose_sets import DISSIPATION, clean_set, injected_set
+from rattlefit.testing.shared import recordings_dir
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED = REPO.parent / "shared" / "recordings"
+SHARED = recordings_dir(REPO)
 CLEAN = ("none", "unexplained")
 #: The shared truth's effect names, as the verdicts that count as right.
 SHARED_EXPECTED = {"runout": ("runout",), "sliding_friction": DISSIPATION}

@@ -30,10 +30,11 @@ from common import head_commit, identified, write_result
 from rattlefit.physics.geometry import table2_pair
 from rattlefit.physics.model import DEFAULT_MIN_FILM, squeeze_momentum
 from rattlefit.reproducibility import platform_info
+from rattlefit.testing.shared import recordings_dir
 
 ROOT = Path(__file__).resolve().parents[1]
 FILES = {
-    "shared": ROOT.parent / "shared" / "recordings" / "pairII_boundary_65.6_20pct_16Hz.h5",
+    "shared": recordings_dir(ROOT) / "pairII_boundary_65.6_20pct_16Hz.h5",
     "rattlefit": ROOT / "data" / "pairII_boundary_65.6_20pct_16Hz.h5",
 }
 #: variant → (features, extra identify arguments)

@@ -24,9 +24,10 @@ from pathlib import Path
 from common import head_commit, identified, log_width, write_result
 
 from rattlefit.reproducibility import platform_info
+from rattlefit.testing.shared import recordings_dir
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "recordings"
+SHARED = recordings_dir(ROOT)
 #: label → (3 s file, 30 s file); the synthetic 30 s file is made by ``synthetic_long``.
 PAIRS = {
     "shared": (

@@ -19,9 +19,10 @@ from pathlib import Path
 from common import head_commit, held, write_result
 
 import rattlefit as rf
+from rattlefit.testing.shared import recordings_dir
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "recordings"
+SHARED = recordings_dir(ROOT)
 
 
 def entry(p, truth: float) -> dict:
