@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 import rattlefit as rf
+from rattlefit.testing.results import head_commit
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = ROOT / "data" / "pairII_boundary_65.6_20pct_16Hz.h5"
@@ -36,11 +37,6 @@ def timed(args: list[str], cache: str = "off") -> float:
     t0 = time.perf_counter()
     subprocess.run([str(exe), *args, "-q"], check=True, env=env, capture_output=True)
     return time.perf_counter() - t0
-
-
-def head_commit() -> str:
-    out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
-    return out.stdout.strip()
 
 
 def main() -> None:
