@@ -34,10 +34,9 @@ def _clean_errors(func):
 
 def _write_json(path: Path, doc: dict) -> None:
     """Write ``doc`` as JSON through a temporary file renamed into place."""
-    from .util import atomic_write
+    from .util import write_json
 
-    text = json.dumps(doc, indent=2)
-    atomic_write(path, lambda tmp: tmp.write_text(text))
+    write_json(path, doc)
     click.echo(f"wrote {path}", err=True)
 
 

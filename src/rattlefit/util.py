@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 import time
@@ -65,6 +66,14 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None]) ->
         tmp_path.unlink(missing_ok=True)
         raise
     return path
+
+
+def write_json(path: str | os.PathLike[str], doc: dict) -> Path:
+    """Write ``doc`` as indented JSON to ``path`` through :func:`atomic_write` (what every
+    ``-o`` of the command line writes); returns ``path``. Raises TypeError for a value JSON
+    cannot hold, before anything is written."""
+    text = json.dumps(doc, indent=2)
+    return atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 
 def stamped(progress: Callable[[str], None] | None, t_start: float) -> Callable[[str], None]:
