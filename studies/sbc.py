@@ -52,6 +52,15 @@ POINTS = {
     "dry": ("I", "dry", 65.4, 10, 16.0, 20.0),
 }
 LEVELS = (0.5, 0.9, 0.95)
+#: What the calibration measures: a change there makes its result stale
+#: (benchmarks/readme_table.py).
+MEASURES = [
+    "src/rattlefit/likelihood",
+    "src/rattlefit/inference",
+    "src/rattlefit/simulation",
+    "src/rattlefit/physics",
+    "src/rattlefit/features",
+]
 #: Posterior draws per case, for the rank statistic (ranks 0…DRAWS).
 DRAWS = 99
 BINS = 10
@@ -317,6 +326,7 @@ def write(args, per_point: dict, all_rows: list, devices: int, wall: float, poin
         "date": time.strftime("%Y-%m-%d"),
         "platform": rf.platform_info(),
         "devices": devices,
+        "measures": MEASURES,
         "seed": args.seed,
         "cases": len(all_rows),
         "wall_s": wall,
