@@ -1,0 +1,335 @@
+"""What a campaign's worker does: read and describe a unit's recordings, and identify,
+sample and diagnose it. Each function runs in a worker process, configures JAX there (once
+per process; the compilation cache shared), never raises for bad data (the error is returned,
+so that the campaign reports it and goes on), and returns plain data: JSON documents, table
+rows and the learned likelihood's file as bytes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import tempfile
+import time
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+from ..config import quietly_configure
+from ..errors import RattlefitError
+from ..inference.options import FitOptions
+from ..physics.geometry import TABLE2
+from ..version import __version__
+from .manifest import Unit
+from .options import CampaignOptions
+from .table import unit_rows
+
+#: The parameters whose truth a synthetic recording's ``/truth`` group holds, as the table
+#: names them.
+TRUTH_NAMES = (
+    "film_half_length",
+    "drag_torque",
+    "viscosity",
+    "min_film",
+    "stiffness_scale",
+    "backlash",
+)
+
+
+@dataclasses.dataclass(frozen=True)
+class Environment:
+    """How a worker sets JAX up: its CPU devices (None: one per core) and the compilation
+    cache (``rattlefit.configure``'s ``compilation_cache``)."""
+
+    cores: int | None = None
+    cache: bool | str = True
+
+
+@dataclasses.dataclass(frozen=True)
+class UnitTask:
+    """One unit's work: which ``stages`` to run (of "fit", "sample", "diagnose"), with which
+    ``options``, whether this fit stores the learned likelihood for the others of its test
+    point (``learn``), and the name of the stored likelihood it reuses (``reuses``)."""
+
+    unit: Unit
+    stages: tuple[str, ...]
+    options: CampaignOptions
+    learn: bool = False
+    reuses: str | None = None
+
+
+def configure(env: Environment) -> None:
+    """Set JAX up in this worker process (64-bit, the CPU devices, the shared compilation
+    cache); a no-op once JAX has started here."""
+    quietly_configure(cpu_cores=env.cores, compilation_cache=env.cache)
+
+
+def worker_address() -> str:
+    """This worker's address, or "local" outside a dask worker."""
+    try:
+        from distributed import get_worker
+
+        return get_worker().address
+    except (ImportError, ValueError):
+        return "local"
+
+
+def error_text(exc: BaseException) -> str:
+    """One line: a rattlefit error's own message, else the exception's type and message and
+    where it was raised."""
+    if isinstance(exc, RattlefitError):
+        return str(exc)
+    where = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
+    at = f" (at {Path(where.filename).name}:{where.lineno})" if where else ""
+    return f"{type(exc).__name__}: {exc}{at}"
+
+
+def file_sha256(path: str | Path) -> str:
+    """The SHA-256 of the file's bytes (hex)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def pair_name(teeth: tuple[int, int]) -> str:
+    """ "I" or "II" for a pair of the paper's Table 2, else ``z=a/b``."""
+    for name, spec in TABLE2.items():
+        if tuple(spec["teeth"]) == tuple(teeth):
+            return name
+    return f"z={teeth[0]}/{teeth[1]}"
+
+
+def describe(rec, path: str, sha: str) -> dict:
+    """What the table and the report show of a recording: its file and hash, gear pair,
+    centre distance (mm), lubrication, oil temperature (°C), speed setting (mean speed
+    rad/s, fluctuation % of it, frequency Hz), duration (s), measured IGR (rad·Hz) and, for a
+    synthetic recording, its truth (SI)."""
+    from ..inference.rig import setup
+    from ..io.recording import read_truth
+
+    op, gp = rec.operating, rec.gear_pair
+    truth = read_truth(path) or {}
+    return {
+        "recording": path,
+        "name": Path(path).name,
+        "sha256": sha,
+        "pair": pair_name((gp.teeth_driving, gp.teeth_driven)),
+        "center_distance_mm": float(gp.center_distance_mm),
+        "lubrication": op.lubrication,
+        "oil_temperature_c": float(op.oil_temperature_c),
+        "mean_speed_rad_s": float(op.drive_mean_speed_rad_s),
+        "fluctuation_pct": round(
+            100.0 * op.drive_speed_amplitude_rad_s / op.drive_mean_speed_rad_s, 6
+        ),
+        "frequency_hz": float(op.drive_frequency_hz),
+        "duration_s": float(rec.duration),
+        "igr_measured": setup(rec).rattle_index(),
+        "truth": {k: float(truth[k]) for k in TRUTH_NAMES if k in truth},
+    }
+
+
+def inspect_unit(unit: Unit, fit: FitOptions, learned: bool, env: Environment) -> dict:
+    """Read ``unit``'s recordings: each one's :func:`describe`, and with ``learned`` the
+    test-point key of the unit's problem (:func:`rattlefit.likelihood.store.test_point_key`).
+    On failure ``error`` names the recording and the problem and ``recordings`` holds those
+    read before it."""
+    t0 = time.perf_counter()
+    out: dict = {"unit": unit.name, "recordings": [], "error": None, "test_point": None}
+    try:
+        configure(env)
+        from ..io.recording import read_recording
+
+        recs = []
+        for path in unit.paths:
+            rec = read_recording(path)
+            out["recordings"].append(describe(rec, path, file_sha256(path)))
+            recs.append(rec)
+        if learned:
+            from ..inference.problem import problem_from
+            from ..likelihood.store import test_point_key
+
+            out["test_point"] = test_point_key(problem_from(recs, fit)[0])
+    except Exception as exc:  # reported, and the campaign goes on
+        out["error"] = error_text(exc)
+    out["wall_s"] = time.perf_counter() - t0
+    return out
+
+
+def resimulated_igr(result, recordings, options: FitOptions, n: int) -> list[list[float]]:
+    """Per recording, the IGR (rad·Hz) of ``n`` realisations simulated at ``result``'s
+    fitted parameters on the recording's rig (its drive, duration and encoders, released at
+    seeded points across the gap; seeded by the fit's seed and the recording's index), at
+    the fit's relative tolerance and the absolute tolerances of a dry fit (the tightest), so
+    that every lubrication runs one compiled program."""
+    import jax.numpy as jnp
+
+    from ..features.spectra import rattle_index
+    from ..inference.rig import setup
+    from ..simulation.solve import (
+        absolute_tolerances,
+        broadcast_params,
+        raise_if_failed,
+        simulate_batch,
+    )
+    from ..simulation.synthetic import recording_from_trajectory
+
+    atol = absolute_tolerances(options.rtol, ("dry",))
+    out = []
+    for k, rec in enumerate(recordings):
+        rig = setup(rec, drive=options.drive)
+        params = result.rattle_params(k)
+        rng = np.random.default_rng([options.seed, k])
+        c = 0.5 * float(params.backlash)
+        y0 = np.stack([rng.uniform(-c, c, size=n), np.zeros(n)], axis=1)
+        sols = raise_if_failed(
+            simulate_batch(
+                rig.model,
+                broadcast_params(params, n),
+                rig.drive,
+                y0=jnp.asarray(y0),
+                duration=rec.duration,
+                sample_rate=rec.sample_rate_hz,
+                rtol=options.rtol,
+                atol=atol,
+            )
+        )
+        igr = []
+        for i in range(n):
+            quantised = recording_from_trajectory(
+                rig.geometry,
+                rec.operating,
+                sols.theta1,
+                sols.q[i],
+                oil=rec.oil,
+                sample_rate=rec.sample_rate_hz,
+                counts_per_rev=rec.counts_per_rev,
+            )
+            igr.append(float(rattle_index(quantised.relative_motion, rec.sample_rate_hz)))
+        out.append(igr)
+    return out
+
+
+def learned_bytes(result) -> bytes | None:
+    """The learned likelihood ``result`` fitted on, as the bytes of its stored file
+    (:func:`rattlefit.likelihood.store.write_learned`); None for the synthetic likelihood."""
+    if result.learned is None:
+        return None
+    from ..likelihood.store import write_learned
+
+    learned = result.learned
+    fields = {f.name: getattr(learned, f.name) for f in dataclasses.fields(learned)}
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "learned.likelihood.h5"
+        write_learned(path, fields.pop("likelihood"), fields.pop("design"), **fields)
+        return path.read_bytes()
+
+
+def run_unit(task: UnitTask, likelihood: bytes | dict | None, env: Environment) -> dict:
+    """Run ``task``'s stages on its unit and return their documents.
+
+    ``likelihood`` is the learned likelihood to reuse: its stored file's bytes, or the
+    result of the unit that learned it (its ``likelihood``; when that unit failed, this one
+    learns its own). The result holds, for each stage run, ``{"doc": …}`` or ``{"error":
+    …}`` (the fit's also its table ``rows``, the re-simulated IGR and, when ``task.learn``,
+    the learned likelihood's bytes), and the worker, rattlefit version and wall time.
+    """
+    t0 = time.perf_counter()
+    out: dict = {"unit": task.unit.name, "stages": {}, "timings": {}}
+    out["worker"] = worker_address()
+    if isinstance(likelihood, dict):  # the learning unit's result
+        likelihood = likelihood.get("stages", {}).get("fit", {}).get("likelihood")
+    options = task.options
+    with tempfile.TemporaryDirectory() as tmp:
+        fit_options = options.fit
+        if likelihood is not None:
+            stored = Path(tmp) / "reused.likelihood.h5"
+            stored.write_bytes(likelihood)
+            fit_options = fit_options.replace(reuse_likelihood=str(stored))
+        try:
+            configure(env)
+            from ..inference.identify import identify
+            from ..io.recording import read_recording
+
+            recordings = [read_recording(p) for p in task.unit.paths]
+            result = None
+            if "fit" in task.stages or "sample" in task.stages:
+                t = time.perf_counter()
+                result = identify(recordings, fit_options)
+                out["timings"]["identify"] = time.perf_counter() - t
+        except Exception as exc:
+            out["error"] = error_text(exc)
+            out["wall_s"] = time.perf_counter() - t0
+            return out
+        runs = {
+            "fit": lambda: fit_stage(task, result, recordings, likelihood),
+            "sample": lambda: sample_stage(options, result, recordings),
+            "diagnose": lambda: diagnose_stage(options, result, recordings),
+        }
+        for name, run in runs.items():
+            if name in task.stages:
+                t = time.perf_counter()
+                out["stages"][name] = stage(run)
+                out["timings"][name] = time.perf_counter() - t
+    out["rattlefit"] = __version__
+    out["wall_s"] = time.perf_counter() - t0
+    return out
+
+
+def stage(run) -> dict:
+    """``run()``'s dict, or ``{"error": …}`` when it raises."""
+    try:
+        return run()
+    except Exception as exc:
+        return {"error": error_text(exc)}
+
+
+def fit_stage(task: UnitTask, result, recordings, likelihood: bytes | None) -> dict:
+    """The identification's JSON (as ``identify -o`` writes it; a reused likelihood named by
+    its campaign file), its table rows and each recording's re-simulated IGR."""
+    doc = result.to_json()
+    if likelihood is not None and task.reuses is not None:
+        doc["fit"]["options"]["reuse_likelihood"] = task.reuses
+        if "reused" in doc["fit"].get("likelihood", {}):
+            doc["fit"]["likelihood"]["reused"] = task.reuses
+    infos = [
+        describe(rec, path, file_sha256(path))
+        for rec, path in zip(recordings, task.unit.paths, strict=True)
+    ]
+    igr = resimulated_igr(result, recordings, task.options.fit, task.options.resimulations)
+    for info, model in zip(infos, igr, strict=True):
+        info["igr_model"] = model
+    return {
+        "doc": doc,
+        "recordings": infos,
+        "rows": unit_rows(task.unit, doc, infos, version=__version__),
+        "likelihood": learned_bytes(result) if task.learn else None,
+    }
+
+
+def sample_stage(options: CampaignOptions, result, recordings) -> dict:
+    """The posterior's JSON (``sample -o``), its chain started from the identification."""
+    from ..inference.posterior import SampleOptions, sample
+
+    sample_options = SampleOptions(
+        n_walkers=options.sample_walkers,
+        n_steps=options.sample_steps,
+        seed=options.fit.seed,
+        fit=result.options,
+    )
+    return {"doc": sample(recordings, result, sample_options).to_json()}
+
+
+def diagnose_stage(options: CampaignOptions, result, recordings) -> dict:
+    """The diagnosis' JSON (``diagnose -o``), from the identification when it is on the
+    synthetic likelihood, else from one of its own with the same options on it."""
+    from ..diagnosis.diagnose import DiagnoseOptions, diagnose
+    from ..physics.effects import EFFECTS
+
+    synthetic = options.fit.likelihood.method == "synthetic"
+    fit = options.fit if synthetic else options.fit.replace(likelihood="synthetic")
+    diag_options = DiagnoseOptions(effects=options.effects or tuple(EFFECTS), fit=fit)
+    baseline = result if synthetic and result is not None else None
+    return {"doc": diagnose(recordings, diag_options, baseline=baseline).to_json()}
