@@ -289,7 +289,7 @@ def test_manifests_group_recordings_and_bad_ones_are_one_clear_error(tmp_path):
 def test_the_report_shows_the_diagnoses_and_failures(campaign, tmp_path):
     _, out, _, _ = campaign
     records = [json.loads(p.read_text()) for p in sorted((out / "tasks").glob("fit-*.json"))]
-    rows = [r for rec in records for r in rec["rows"]]
+    rows = read_table(out).to_dict("records")
     recordings = [r for rec in records for r in rec["recording_info"]]
     diagnosis = {
         "unit": records[0]["unit"],

@@ -46,7 +46,7 @@ from ..version import __version__
 from .manifest import Manifest, Unit, read_manifest
 from .options import CampaignOptions, ClusterOptions
 from .report import write_campaign_report
-from .table import with_diagnosis, with_posterior, write_table
+from .table import unit_rows, with_diagnosis, with_posterior, write_table
 from .work import Environment, UnitTask, inspect_unit, run_unit
 
 #: A unit's stages, in the order they run.
@@ -231,7 +231,6 @@ class Store:
             **extra,
         }
         if stage == "fit":
-            record["rows"] = found["rows"]
             record["recording_info"] = found["recordings"]
         write_json(self.record_path(stage, planned.keys[stage]), record)
 
@@ -339,7 +338,7 @@ def run_campaign(
         ran = run_all(c, plans, options, env, store, failures, clock, say)
         marks["run"] = time.perf_counter()
     with clock:
-        result = finish(store, manifest, units, inspections, plans, options, failures, say)
+        result = finish(store, manifest, units, plans, options, failures, say)
     marks["finish"] = time.perf_counter()
     wall = marks["finish"] - t_start
     names = list(marks)
@@ -511,7 +510,7 @@ def progress_bar(done: int, total: int, width: int = 20) -> str:
     return f"[{'#' * filled}{'.' * (width - filled)}] {done}/{total}"
 
 
-def finish(store: Store, manifest, units, inspections, plans, options, failures, say):
+def finish(store: Store, manifest, units, plans, options, failures, say):
     """The table, the report and the failures' list of every stage done; returns the
     table's two paths and the report's (None each when nothing was identified)."""
     rows, infos, diagnoses = [], [], []
@@ -519,15 +518,18 @@ def finish(store: Store, manifest, units, inspections, plans, options, failures,
         fit = store.record("fit", p.keys["fit"])
         if fit is None:
             continue
-        unit_rows = [{**r, "key": p.keys["fit"]} for r in fit["rows"]]
+        doc = json.loads(store.run_file(p.unit, "fit").read_text(encoding="utf-8"))
+        version = fit.get("rattlefit") or __version__
+        found = unit_rows(p.unit, doc, fit["recording_info"], version=version)
+        found = [{**r, "key": p.keys["fit"]} for r in found]
         if "sample" in wanted(options) and store.record("sample", p.keys["sample"]):
             posterior = json.loads(store.run_file(p.unit, "sample").read_text(encoding="utf-8"))
-            unit_rows = with_posterior(unit_rows, posterior)
+            found = with_posterior(found, posterior)
         if "diagnose" in wanted(options) and store.record("diagnose", p.keys["diagnose"]):
             diagnosis = json.loads(store.run_file(p.unit, "diagnose").read_text(encoding="utf-8"))
-            unit_rows = with_diagnosis(unit_rows, diagnosis)
+            found = with_diagnosis(found, diagnosis)
             diagnoses.append({"unit": p.unit.name, "recordings": list(p.unit.paths), **diagnosis})
-        rows += unit_rows
+        rows += found
         infos += [{**r, "unit": p.unit.name} for r in fit["recording_info"]]
     write_failures(store.directory / FAILURES, failures)
     if not rows:

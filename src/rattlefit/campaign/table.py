@@ -1,8 +1,9 @@
 """The campaign's results table: one row per recording × parameter, tidy, as Parquet and CSV.
 
-A unit's rows come from its identification's JSON (:func:`unit_rows`, on the worker); a
-joint fit gives each of its recordings the parameters that apply to it (the shared ones,
-its lubrication's film, its own backlash). The columns (SI units, as the JSON):
+A unit's rows come from its identification's JSON and its recordings' descriptions
+(:func:`unit_rows`); a joint fit gives each of its recordings the parameters that apply to it
+(the shared ones, its lubrication's film, its own backlash). The columns (SI units, as the
+JSON):
 
 * the identification: ``fit`` (the unit's name), ``joint``, ``key`` (the content hash the
   campaign resumes by);
@@ -11,8 +12,9 @@ its lubrication's film, its own backlash). The columns (SI units, as the JSON):
   ``mean_speed_rad_s``, ``fluctuation_pct``, ``frequency_hz``, ``duration_s``;
 * the parameter: ``parameter`` (its quantity, e.g. ``film_half_length``, ``backlash``),
   ``fit_parameter`` (its name in the fit, e.g. ``film_half_length[boundary]``,
-  ``backlash[1]``), ``unit``, ``estimate``, ``lower``, ``upper`` (the 95 % interval),
-  ``bound``, ``identified``, ``truth`` (a synthetic recording's, else empty);
+  ``backlash[1]``), ``unit``, ``estimate``, ``lower``, ``upper`` (the 95 % interval; the
+  viscosity at the recording's own oil temperature), ``bound``, ``identified``, ``truth`` (a
+  synthetic recording's, else empty);
 * the fit: ``chi2``, ``dof``, ``p_value``, ``poor_fit``, ``seed``, ``rattlefit_version``;
 * when asked for: ``posterior_median``, ``posterior_lower``, ``posterior_upper`` (the 95 %
   credible interval) and ``diagnosis`` (the verdict).
@@ -88,7 +90,10 @@ def applies_to(name: str, k: int, lubrication: str) -> bool:
 def unit_rows(unit: Unit, doc: dict, recordings: list[dict], *, version: str) -> list[dict]:
     """The table rows of one identification: ``doc`` is its JSON
     (:meth:`rattlefit.FitResult.to_json`), ``recordings`` its recordings' descriptions in
-    the fit's order; ``version`` the rattlefit version that fitted it."""
+    the fit's order; ``version`` the rattlefit version that fitted it. The fit reports the
+    viscosity at its first recording's oil temperature; each recording's row gives it at its
+    own, scaled by the description's ``viscosity_factor`` (its oil's viscosity over the first
+    recording's; 1 when absent), which the row keeps as ``scale`` (not a table column)."""
     fit = doc["fit"]
     rows = []
     for k, rec in enumerate(recordings):
@@ -96,6 +101,7 @@ def unit_rows(unit: Unit, doc: dict, recordings: list[dict], *, version: str) ->
             if not applies_to(name, k, rec["lubrication"]):
                 continue
             quantity = base_name(name)
+            scale = rec.get("viscosity_factor", 1.0) if quantity == "viscosity" else 1.0
             rows.append(
                 {
                     "fit": unit.name,
@@ -107,9 +113,9 @@ def unit_rows(unit: Unit, doc: dict, recordings: list[dict], *, version: str) ->
                     "parameter": quantity,
                     "fit_parameter": name,
                     "unit": p["unit"],
-                    "estimate": p.get("estimate"),
-                    "lower": p["lower"],
-                    "upper": p["upper"],
+                    "estimate": None if p.get("estimate") is None else p["estimate"] * scale,
+                    "lower": p["lower"] * scale,
+                    "upper": p["upper"] * scale,
                     "bound": p.get("bound") or "",
                     "identified": bool(p["identified"]),
                     "truth": rec.get("truth", {}).get(quantity),
@@ -119,6 +125,7 @@ def unit_rows(unit: Unit, doc: dict, recordings: list[dict], *, version: str) ->
                     "poor_fit": bool(fit["poor_fit"]),
                     "seed": fit["seed"],
                     "rattlefit_version": version,
+                    "scale": scale,
                 }
             )
     return rows
@@ -134,11 +141,12 @@ def with_posterior(rows: list[dict], posterior: dict | None) -> list[dict]:
     for row in rows:
         p = found.get(row["fit_parameter"])
         if p is not None:
+            scale = row.get("scale", 1.0)
             row = {
                 **row,
-                "posterior_median": p["median"],
-                "posterior_lower": p["lower"],
-                "posterior_upper": p["upper"],
+                "posterior_median": p["median"] * scale,
+                "posterior_lower": p["lower"] * scale,
+                "posterior_upper": p["upper"] * scale,
             }
         out.append(row)
     return out

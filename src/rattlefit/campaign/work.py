@@ -23,7 +23,6 @@ from ..physics.geometry import TABLE2
 from ..version import __version__
 from .manifest import Unit
 from .options import CampaignOptions
-from .table import unit_rows
 
 #: The parameters whose truth a synthetic recording's ``/truth`` group holds, as the table
 #: names them.
@@ -288,7 +287,9 @@ def stage(run) -> dict:
 
 def fit_stage(task: UnitTask, result, recordings, likelihood: bytes | None) -> dict:
     """The identification's JSON (as ``identify -o`` writes it; a reused likelihood named by
-    its campaign file), its table rows and each recording's re-simulated IGR."""
+    its campaign file), and its recordings' descriptions (:func:`describe`) with each one's
+    re-simulated IGR (``igr_model``) and its oil's viscosity over the first recording's
+    (``viscosity_factor``)."""
     doc = result.to_json()
     if likelihood is not None and task.reuses is not None:
         doc["fit"]["options"]["reuse_likelihood"] = task.reuses
@@ -299,12 +300,13 @@ def fit_stage(task: UnitTask, result, recordings, likelihood: bytes | None) -> d
         for rec, path in zip(recordings, task.unit.paths, strict=True)
     ]
     igr = resimulated_igr(result, recordings, task.options.fit, task.options.resimulations)
-    for info, model in zip(infos, igr, strict=True):
+    oils = np.asarray(result.problem.viscosities, dtype=float)
+    for k, (info, model) in enumerate(zip(infos, igr, strict=True)):
         info["igr_model"] = model
+        info["viscosity_factor"] = float(oils[k] / oils[0])
     return {
         "doc": doc,
         "recordings": infos,
-        "rows": unit_rows(task.unit, doc, infos, version=__version__),
         "likelihood": learned_bytes(result) if task.learn else None,
     }
 
