@@ -30,6 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import rattlefit
 from rattlefit.campaign import (
     CampaignGrid,
     CampaignOptions,
@@ -139,6 +140,7 @@ def main() -> None:
     ap.add_argument("--workers", default="1,2")
     ap.add_argument("--result", type=Path, default=ROOT / "benchmarks/results/campaign.json")
     args = ap.parse_args()
+    rattlefit.configure(cpu_cores=1)  # this process simulates the recordings; workers fit
     counts = [int(w) for w in args.workers.split(",")]
     per_lub = max(1, args.recordings // 3)
     cds = tuple(PAPER_CENTER_DISTANCES[i % 6] + 0.05 * (i // 6) for i in range(per_lub))
