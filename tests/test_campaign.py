@@ -26,6 +26,7 @@ from rattlefit.campaign import (
     read_manifest,
     read_table,
     run_campaign,
+    schedule,
     simulate_campaign,
 )
 from rattlefit.campaign.manifest import write_manifest
@@ -249,7 +250,7 @@ def test_one_learning_per_test_point():
     ]
 
 
-def test_manifests_group_recordings_and_bad_ones_are_one_clear_error(tmp_path):
+def test_manifests_group_recordings_and_bad_ones_are_one_clear_error(tmp_path, monkeypatch):
     for name in ("a.h5", "b.h5", "c.h5"):
         (tmp_path / name).write_bytes(b"")
     (tmp_path / "sweep.csv").write_text("recording,group\na.h5,sweep\nb.h5,\nc.h5,sweep\n")
@@ -284,6 +285,12 @@ def test_manifests_group_recordings_and_bad_ones_are_one_clear_error(tmp_path):
     assert result.output.startswith(f"rattlefit: error: {path}: line 2, recording: empty")
     assert result.output.count("\n") == 1
     assert not (tmp_path / "out").exists()
+    # a scheduler that does not answer: one line naming it (after a second here)
+    monkeypatch.setattr(schedule, "CONNECT_TIMEOUT", 1)
+    args = ["campaign", str(tmp_path), "-o", str(tmp_path / "out"), "--scheduler"]
+    result = CliRunner().invoke(main, [*args, "tcp://127.0.0.1:1"])
+    assert result.exit_code == 2, result.output
+    assert result.output.startswith("rattlefit: error: tcp://127.0.0.1:1: scheduler: ")
 
 
 def test_the_report_shows_the_diagnoses_and_failures(campaign, tmp_path):

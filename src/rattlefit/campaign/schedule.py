@@ -59,6 +59,8 @@ SUMMARY, FAILURES, REPORT = "campaign.json", "failures.csv", "report.html"
 #: The files a stage writes into RUNS, after the unit's name.
 SUFFIXES = {"fit": ".json", "sample": ".posterior.json", "diagnose": ".diagnosis.json"}
 LIKELIHOOD_SUFFIX = ".likelihood.h5"
+#: How long joining a running scheduler may take, s.
+CONNECT_TIMEOUT = 30
 
 
 @dataclasses.dataclass(frozen=True)
@@ -250,7 +252,13 @@ def connected(cluster: ClusterOptions, client=None) -> Iterator:
     from distributed import Client, LocalCluster
 
     if cluster.scheduler is not None:
-        with Client(cluster.scheduler) as c:
+        try:
+            joined = Client(cluster.scheduler, timeout=CONNECT_TIMEOUT)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise RattlefitError(
+                f"{cluster.scheduler}: scheduler: no dask scheduler answers there ({exc})"
+            ) from exc
+        with joined as c:
             yield c
         return
     with (
@@ -325,8 +333,10 @@ def run_campaign(
     with connected(cluster, client) as c:
         marks["connected"] = time.perf_counter()
         with clock:
-            link = getattr(c, "dashboard_link", None)
-            n_workers = len(c.scheduler_info().get("workers", {}))
+            info = c.scheduler_info()
+            served = "dashboard" in info.get("services", {})
+            link = getattr(c, "dashboard_link", None) if served else None
+            n_workers = len(info.get("workers", {}))
             say(
                 f"{len(units)} identifications on {n_workers} workers"
                 + (f"; dashboard {link}" if link else "")
