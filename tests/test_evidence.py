@@ -10,12 +10,22 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy import stats
 
 import rattlefit as rf
 from rattlefit import synthesize
 from rattlefit.diagnosis.evidence import findings
 from rattlefit.features.drift import drift_evidence, window_length
-from rattlefit.features.orders import contact_events, drive_order_evidence, runout_evidence
+from rattlefit.features.orders import (
+    contact_events,
+    drive_order_evidence,
+    local_inflation,
+    order_projections,
+    primary_residual,
+    quantisation_inflation,
+    ripple_orders,
+    runout_evidence,
+)
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.physics import effects as fx
 from rattlefit.testing.shared import recordings_dir
@@ -125,23 +135,43 @@ def test_shared_recordings_run_out_is_found_and_nothing_else(name):
     assert named == expected, [f.as_dict() for f in found if f.significant]
 
 
-def test_a_ripple_of_the_primary_shaft_is_found_with_its_size(boundary_pair2):
-    # the clean recording's primary encoder with a twice-per-revolution angle ripple A added
-    # (counts rounded): the acceleration amplitude is (2 Ω)² A, and the clean encoder has none
+@pytest.mark.parametrize(("order", "ripple"), [(2, 2e-3), (24, 5e-4), (37, 3e-4)])
+def test_a_ripple_of_the_primary_shaft_is_found_at_its_order_with_its_size(
+    boundary_pair2, order, ripple
+):
+    # the clean recording's primary encoder with an angle ripple A at an order added (counts
+    # rounded, so A spans a few counts): the acceleration amplitude is (order · Ω)² A, an
+    # engine's firing order or an electric motor's slot order, and the clean encoder has none
     import dataclasses
 
     _, clean = boundary_pair2
     assert not drive_order_evidence(clean).p_value < FAMILY / 7
-    ripple = 2e-3  # rad: (2 · 52.36 rad/s)² · 2e-3 rad = 21.9 rad/s², 2 % of 2π f ΔΩ
     theta = clean.theta_primary
     counts = clean.primary + np.round(
-        ripple * np.sin(2 * theta) * clean.counts_per_rev / (2 * np.pi)
+        ripple * np.sin(order * theta) * clean.counts_per_rev / (2 * np.pi)
     )
     rec = dataclasses.replace(clean, primary=counts.astype(clean.primary.dtype))
     test = drive_order_evidence(rec)
-    assert test.p_value < 1e-6 and test.detail["order"] == 2
+    assert test.p_value < 1e-6 and test.detail["order"] == order
     omega = rec.operating.drive_mean_speed_rad_s
-    assert test.amplitude == pytest.approx((2 * omega) ** 2 * ripple, rel=0.05)
+    # a ripple of a few counts, rounded, is sized to within 10 %
+    assert test.amplitude == pytest.approx((order * omega) ** 2 * ripple, rel=0.1)
+
+
+def test_the_encoder_quantisation_of_a_smooth_drive_is_no_ripple(boundary_pair2):
+    # counting a smoothly turning shaft leaves lines at orders set by the speed law (here,
+    # 20 % at 16 Hz, order 126, χ² ≈ 40 where white noise gives 2): the quantisation null
+    # holds them, where the neighbours' level alone would call them a ripple
+    _, clean = boundary_pair2
+    residual = primary_residual(clean, 6)
+    orders = ripple_orders(clean)
+    chi2 = order_projections(residual, clean.theta_primary, orders)[0]
+    local = local_inflation(order_projections(residual, clean.theta_primary, orders + 0.5)[0])
+    by_neighbours = stats.chi2.sf(chi2 / local, 2).min() * orders.size
+    assert by_neighbours < 1e-10
+    null = quantisation_inflation(clean, orders, 6)
+    assert np.all(chi2 / np.maximum(local, null) < 30)
+    assert drive_order_evidence(clean).p_value > 0.01
 
 
 @pytest.mark.parametrize("teeth", [11, 43])

@@ -45,8 +45,18 @@ MIN_FLANK_EVENTS = 60
 MIN_TOOTH_EVENTS = 3
 #: Orders of a wheel's angle that run-out covers: eccentricity (1) and ovality (2).
 RUNOUT_ORDERS = (1, 2)
-#: Orders of the primary shaft tested for a drive ripple.
-DRIVE_ORDERS = 4
+#: A drive ripple is looked for at every integer order of the primary shaft whose frequency
+#: stays below this share of the sample rate (an electric drive's slot and pole orders, an
+#: engine's firing orders).
+RIPPLE_BAND = 0.12
+#: Half-integer orders each side of an order whose single-order χ² set its noise level (the
+#: residual's spectrum is coloured: impacts and quantisation, not white noise).
+RIPPLE_NEIGHBOURS = 20
+#: Encoder quantisations of the recording's own smooth drive behind the null of each order: the
+#: counts of a smoothly turning shaft leave lines at orders that depend on the speed law.
+QUANTISATION_NULLS = 8
+#: Orders whose projections are computed at once (a block of samples × orders).
+ORDER_BLOCK = 64
 #: Decoy orders behind each inflation estimate, and their clearance from the orders where
 #: something is expected, in order resolutions (1 / revolutions recorded).
 DECOY_COUNT = 15
@@ -528,54 +538,127 @@ def tooth_evidence(recording: Recording, events: ContactEvents | None = None) ->
     return out
 
 
-def primary_residual(recording: Recording, n_harmonics: int) -> np.ndarray:
-    """The primary encoder's angle less its fit by a constant speed and ``n_harmonics``
+def drive_fit(recording: Recording, theta, n_harmonics: int) -> np.ndarray:
+    """The fit (N,) of an angle ``theta`` (N,, rad) by a constant speed and ``n_harmonics``
     harmonics of the drive frequency (:meth:`~rattlefit.physics.drive.Drive.fit`), rad."""
     t = recording.time
     k = np.arange(1, n_harmonics + 1)
     phase = 2 * math.pi * recording.operating.drive_frequency_hz * np.outer(t, k)
     x = np.column_stack([np.ones_like(t), t, np.cos(phase), np.sin(phase)])
-    coef, *_ = np.linalg.lstsq(x, recording.theta_primary, rcond=None)
-    return recording.theta_primary - x @ coef
+    coef, *_ = np.linalg.lstsq(x, theta, rcond=None)
+    return x @ coef
 
 
-def order_chi2(residual: np.ndarray, theta: np.ndarray, orders) -> tuple[float, np.ndarray]:
-    """Wald χ² (OLS, white noise) of sinusoids of ``orders`` × ``theta`` in ``residual``,
-    and each order's amplitude (rad)."""
-    cols = [f(o * theta) for o in orders for f in (np.cos, np.sin)]
-    x = np.column_stack(cols)
-    coef, *_ = np.linalg.lstsq(x, residual, rcond=None)
-    res = residual - x @ coef
-    var = float(res @ res) / max(residual.size - x.shape[1], 1)
-    cov = var * np.linalg.pinv(x.T @ x)
-    chi2 = float(coef @ np.linalg.solve(cov, coef))
-    return chi2, np.hypot(coef[0::2], coef[1::2])
+def primary_residual(recording: Recording, n_harmonics: int) -> np.ndarray:
+    """The primary encoder's angle less its :func:`drive_fit`, rad."""
+    return recording.theta_primary - drive_fit(recording, recording.theta_primary, n_harmonics)
+
+
+def order_projections(residual: np.ndarray, theta: np.ndarray, orders) -> tuple[np.ndarray, ...]:
+    """For each of ``orders`` (M,), the least-squares fit of a sinusoid of ``order × theta``
+    to ``residual`` (N,) alone: its Wald χ² under white noise (M,), its amplitude (M,, rad)
+    and the fit's residual variance (M,)."""
+    orders = np.asarray(orders, float)
+    rr = float(residual @ residual)
+    n = residual.size
+    chi2, amp, var = (np.empty(orders.size) for _ in range(3))
+    for start in range(0, orders.size, ORDER_BLOCK):
+        o = orders[start : start + ORDER_BLOCK]
+        phase = np.outer(theta, o)
+        c, s = np.cos(phase), np.sin(phase)
+        cc, ss, cs = (np.einsum("ij,ij->j", a, b) for a, b in ((c, c), (s, s), (c, s)))
+        xc, xs = residual @ c, residual @ s
+        det = cc * ss - cs**2
+        a, b = (ss * xc - cs * xs) / det, (cc * xs - cs * xc) / det
+        explained = a * xc + b * xs  # coefᵀ Xᵀ r = coefᵀ (XᵀX) coef
+        v = (rr - explained) / max(n - 2, 1)
+        block = slice(start, start + o.size)
+        chi2[block], amp[block], var[block] = explained / v, np.hypot(a, b), v
+    return chi2, amp, var
+
+
+def ripple_orders(recording: Recording) -> np.ndarray:
+    """The integer orders of the primary shaft where a drive ripple is looked for: 1 up to
+    where its frequency reaches :data:`RIPPLE_BAND` of the sample rate, except the multiples of
+    the mesh order (a transmission error: :func:`mesh_order_evidence`), the orders within
+    :data:`DECOY_CLEARANCE` resolutions of the driven wheel's first two orders (its run-out),
+    and the orders that fall on a harmonic of the drive frequency (at any harmonic number):
+    there the rattle's impacts, which repeat with the drive cycle and push back on the
+    primary shaft, and an angle-locked ripple are the same sinusoid (the residual's fitted
+    drive harmonics among them)."""
+    speed = recording.operating.drive_mean_speed_rad_s / (2 * math.pi)  # rev/s
+    top = int(RIPPLE_BAND * recording.sample_rate_hz / speed)
+    orders = np.arange(1, max(top, 1) + 1)
+    resolution = 1.0 / (speed * recording.duration)
+    drive = recording.operating.drive_frequency_hz / speed  # the drive frequency as an order
+    runout = np.arange(1, 3) / recording.gear_ratio
+    near_runout = np.min(np.abs(orders[:, None] - runout[None]), axis=1)
+    harmonic = orders / drive
+    near_drive = np.abs(harmonic - np.round(harmonic)) * drive
+    clear = np.minimum(near_runout, near_drive) > DECOY_CLEARANCE * resolution
+    return orders[clear & (orders % recording.gear_pair.teeth_driving != 0)]
+
+
+def local_inflation(chi2_half: np.ndarray) -> np.ndarray:
+    """The noise level near each scanned order: the median single-order χ² of the
+    :data:`RIPPLE_NEIGHBOURS` half-integer orders each side of it (``chi2_half`` (M,), at each
+    scanned order + ½) over χ²₂'s median (M,)."""
+    m = chi2_half.size
+    out = np.empty(m)
+    for i in range(m):
+        near = chi2_half[max(i - RIPPLE_NEIGHBOURS, 0) : i + RIPPLE_NEIGHBOURS + 1]
+        out[i] = np.median(near)
+    return out / stats.chi2.median(2)
+
+
+def quantisation_inflation(recording: Recording, orders, n_harmonics: int) -> np.ndarray:
+    """The χ² (M,) that encoder quantisation alone leaves at each of ``orders``, over χ²₂'s
+    median: the recording's own :func:`drive_fit`, counted with :data:`QUANTISATION_NULLS`
+    count offsets (evenly spaced over one count: deterministic), each run through the same
+    residual and projections as the recording; the median over the offsets."""
+    smooth = drive_fit(recording, recording.theta_primary, n_harmonics)
+    cpr = recording.counts_per_rev
+    chi2 = []
+    for offset in (np.arange(QUANTISATION_NULLS) + 0.5) / QUANTISATION_NULLS:
+        theta = np.floor(smooth * cpr / (2 * math.pi) + offset) * (2 * math.pi / cpr)
+        residual = theta - drive_fit(recording, theta, n_harmonics)
+        chi2.append(order_projections(residual, theta, orders)[0])
+    return np.median(chi2, axis=0) / stats.chi2.median(2)
 
 
 def drive_order_evidence(recording: Recording, *, n_harmonics: int = 6) -> AngleTest:
-    """Speed ripple of the primary shaft at its orders 1–:data:`DRIVE_ORDERS` that a fit by
-    harmonics of the drive frequency does not hold (a drive ripple): the Wald χ² of those
-    orders in the primary encoder's residual (:func:`primary_residual`), divided by its
-    inflation at :func:`decoy_orders`; ``amplitude`` is the largest order's acceleration
-    amplitude (rad/s²) and ``detail`` the order."""
+    """Speed ripple of the primary shaft at any of its integer orders
+    (:func:`ripple_orders`) that a fit by harmonics of the drive frequency does not hold (a
+    drive ripple: an engine's firing order, an electric motor's cogging at its slot order):
+    each order's single-sinusoid Wald χ² in the primary encoder's residual
+    (:func:`primary_residual`), divided by the larger of the noise level of its
+    neighbourhood (:func:`local_inflation`) and what the encoder's quantisation of the smooth
+    drive leaves there (:func:`quantisation_inflation`); the test is the order of least p,
+    its p corrected for the number of orders scanned (Šidák). ``amplitude`` is that order's
+    acceleration amplitude (rad/s²); ``detail`` holds the order, its inflation and the number
+    of orders scanned."""
     theta = recording.theta_primary
     residual = primary_residual(recording, n_harmonics)
-    orders = np.arange(1, DRIVE_ORDERS + 1)
-    chi2, amps = order_chi2(residual, theta, orders)
-    dof = 2 * orders.size
-    decoys = [order_chi2(residual, theta, [o])[0] for o in decoy_orders(recording, "primary")]
-    lam = max(1.0, float(np.median(decoys)) / stats.chi2.median(2)) if decoys else 1.0
-    speed = recording.operating.drive_mean_speed_rad_s
-    acc = amps * (orders * speed) ** 2
-    worst = int(np.argmax(acc))
-    n = residual.size
-    sd = math.sqrt(2.0 / n) * float(np.std(residual)) * (orders[worst] * speed) ** 2
+    orders = ripple_orders(recording)
+    chi2, amps, var = order_projections(residual, theta, orders)
+    lam = np.maximum(
+        local_inflation(order_projections(residual, theta, orders + 0.5)[0]),
+        quantisation_inflation(recording, orders, n_harmonics),
+    )
+    p = stats.chi2.sf(chi2 / lam, 2)
+    best = int(np.argmin(p))
+    to_acc = (orders[best] * recording.operating.drive_mean_speed_rad_s) ** 2
+    sd = math.sqrt(2.0 * lam[best] * var[best] / residual.size) * to_acc
     return AngleTest(
         name="drive_order",
-        chi2=chi2 / lam,
-        dof=dof,
-        p_value=float(stats.chi2.sf(chi2 / lam, dof)),
-        amplitude=float(acc[worst]),
+        chi2=float(chi2[best] / lam[best]),
+        dof=2,
+        p_value=float(-np.expm1(orders.size * np.log1p(-p[best]))),
+        amplitude=float(amps[best] * to_acc),
         amplitude_sd=sd,
-        detail={"order": int(orders[worst]), "inflation": lam},
+        detail={
+            "order": int(orders[best]),
+            "inflation": float(lam[best]),
+            "orders_scanned": int(orders.size),
+        },
     )
