@@ -193,3 +193,26 @@ def test_the_smooth_part_of_the_tooth_offsets_is_projected_out(teeth):
     tested = np.ones(teeth, bool)
     tested[5] = False
     assert np.all(smooth_part_removed(teeth, tested)[5] == 0.0)
+
+
+def test_the_drive_ripple_candidate_takes_the_order_its_test_found(boundary_pair2):
+    # a ripple found at order 24 is fitted to the bands as a ripple at order 24, not at the
+    # candidate's default order
+    import dataclasses
+
+    from rattlefit.diagnosis.evidence import candidate_static
+    from rattlefit.diagnosis.trial import candidate_problem
+    from rattlefit.inference.options import FitOptions
+    from rattlefit.inference.problem import problem_from
+
+    _, clean = boundary_pair2
+    counts = clean.primary + np.round(
+        5e-4 * np.sin(24 * clean.theta_primary) * clean.counts_per_rev / (2 * np.pi)
+    )
+    rec = dataclasses.replace(clean, primary=counts.astype(clean.primary.dtype))
+    static = candidate_static(findings([rec], FAMILY))
+    assert static == {"drive_ripple": {"order": 24}}
+    assert candidate_static(findings([clean], FAMILY)) == {}
+    base, _, _ = problem_from([rec], FitOptions.quick())
+    problem, _ = candidate_problem(base, ("drive_ripple",), static)
+    assert problem.effects[0].order == 24

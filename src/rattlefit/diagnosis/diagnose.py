@@ -73,7 +73,7 @@ from ..physics.effects import EFFECTS, effect_class
 from ..reproducibility import platform_info
 from ..util import stamped
 from .cycle import cycle_gap
-from .evidence import ENCODER_VISIBLE, FOUND_ONLY, findings
+from .evidence import ENCODER_VISIBLE, FOUND_ONLY, candidate_static, findings
 from .pairs import pair_candidates, pair_name, settled_single, try_pair
 from .result import Diagnosis, EffectOutcome, baseline_warnings, finding_phrase
 from .screening import distinct_rows, free_alternatives, screen
@@ -205,13 +205,15 @@ def trial_of(
     baseline: FitResult,
     options: DiagnoseOptions,
     names: Sequence[str] | None = None,
+    static: dict[str, dict] | None = None,
 ) -> Trial:
     """The :class:`Trial` of ``baseline``: its problem with the candidates ``names`` (default:
-    every effect of ``options``), noise model, fresh release states for the final comparison
-    and validation states (the fit's covariance count), from two children spawned from the
-    fit's seed."""
+    every effect of ``options``; each with its ``static`` fields), noise model, fresh release
+    states for the final comparison and validation states (the fit's covariance count), from
+    two children spawned from the fit's seed."""
     base = baseline.problem_for(recordings)
-    problem, candidates = candidate_problem(base, options.effects if names is None else names)
+    names = options.effects if names is None else names
+    problem, candidates = candidate_problem(base, names, static)
     fit_options = baseline.options
     n_validation = fit_options.n_covariance_realisations
     n_final = options.n_final or FINAL_FACTOR * n_validation
@@ -416,7 +418,9 @@ def diagnose(
     platform = platform_info()
     found, seen = model_free(recordings, options, say)
     baseline = identified(recordings, options, baseline, progress, say)
-    trial = trial_of(recordings, baseline, options, in_program(options, seen))
+    trial = trial_of(
+        recordings, baseline, options, in_program(options, seen), candidate_static(found)
+    )
     z_base, chi2_without, refit_costs, warnings = base_model(trial, baseline, say)
     cycle = drive_cycle(trial, z_base, recordings, baseline, options.significance, say)
     gap = stats.chi2.sf(chi2_without, trial.dof) < options.significance

@@ -131,3 +131,13 @@ def findings(recordings: Sequence[Recording], significance: float) -> list[Findi
         named = test.p_value < level and relevant(test, recordings[k])
         out.append(Finding(k, test, POINTS_TO[kind_of(test)], level, bool(named)))
     return out
+
+
+def candidate_static(found: Sequence[Finding]) -> dict[str, dict]:
+    """The static fields of the candidates that the significant findings fix: a drive
+    ripple at the order its test found (the most significant one's)."""
+    ripples = [f for f in found if f.significant and kind_of(f.test) == "drive_order"]
+    if not ripples:
+        return {}
+    best = min(ripples, key=lambda f: f.test.p_value)
+    return {"drive_ripple": {"order": int(best.test.detail["order"])}}

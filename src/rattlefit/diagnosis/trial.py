@@ -13,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from scipy import stats
@@ -307,15 +307,19 @@ def effect_specs(name: str) -> tuple[ParameterSpec, ...]:
     )
 
 
-def candidate_problem(problem: Problem, names) -> tuple[Problem, dict[str, list[int]]]:
-    """``problem`` with every effect in ``names`` added at its absent end, and each effect's
+def candidate_problem(
+    problem: Problem, names, static: Mapping[str, dict] | None = None
+) -> tuple[Problem, dict[str, list[int]]]:
+    """``problem`` with every effect in ``names`` added at its absent end (with the static
+    fields ``static[name]``, e.g. the order a drive-ripple test found), and each effect's
     coordinates."""
     specs, candidates = list(problem.specs), {}
     for name in names:
         extra = effect_specs(name)
         candidates[name] = list(range(len(specs), len(specs) + len(extra)))
         specs += extra
-    effects = tuple(absent(name) for name in names)
+    static = static or {}
+    effects = tuple(absent(name, **static.get(name, {})) for name in names)
     return dataclasses.replace(problem, specs=tuple(specs), effects=effects), candidates
 
 

@@ -75,10 +75,11 @@ EFFECTS: dict[str, type[Effect]] = {
 }
 
 
-def absent(name: str) -> Effect:
-    """The effect ``name`` with every fitted field at the absent end of its range."""
+def absent(name: str, **static) -> Effect:
+    """The effect ``name`` with every fitted field at the absent end of its range, and its
+    static fields (e.g. a drive ripple's ``order``) as given."""
     cls = effect_class(name)
-    return cls(**{k: lo for k, (_, lo, _) in cls.ranges.items()})
+    return cls(**{k: lo for k, (_, lo, _) in cls.ranges.items()}, **static)
 
 
 def effect_class(name: str) -> type[Effect]:
