@@ -2,13 +2,18 @@
 matrix on recordings with an effect written in another form than the catalogue's.
 
 The cases are the independent simulator's recordings in ``../shared/recordings/`` (with their
-truth) and the sets of ``rattlefit.testing.diagnose_sets`` (clean recordings whose model form
-differs from rattlefit's fitted one; recordings with an injected effect of another form).
+truth), the sets of ``rattlefit.testing.diagnose_sets`` (clean recordings whose model form
+differs from rattlefit's fitted one; recordings with an injected effect of another form), and
+a validation set of the second rig model (``studies/second_rig``, set ``validation``, read
+from ``--validation-dir``; made once from a recorded seed and scored at a frozen method
+commit, so that nothing is tuned against it: its ``manifest.json`` hash is kept in the
+result).
 Each case lists the verdicts that count as right: ``none`` or ``unexplained`` for a clean
 recording, the effect (or, for dissipation in contact, any of the dissipative candidates)
 otherwise.
 
-    python studies/diagnose_study.py [--sets shared,clean,injected] [--full]
+    python studies/diagnose_study.py [--sets shared,clean,injected,validation] [--full]
+                                        [--validation-dir DIR]
                                         [--only NAME ...] [--cases-dir DIR [--rows-only]]
                                         [--json out.json] [--quiet]
                                         [--result README_RESULT.json --method-commit C]
@@ -35,7 +40,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
-from common import write_result
+from common import provenance, write_result
 from scipy import stats
 
 import rattlefit as rf
@@ -81,6 +86,27 @@ def set_cases(which: str) -> list[dict]:
         }
         for path, truth in build(**kwargs)
     ]
+
+
+def validation_cases(directory: Path) -> list[dict]:
+    """The cases of a second-rig validation set in ``directory`` (its ``truth.json``)."""
+    truth = json.loads((directory / "truth.json").read_text())
+    return [
+        {
+            "name": name,
+            "path": str(directory / f"{name}.h5"),
+            "set": "validation",
+            "expected": list(entry["expected"]),
+        }
+        for name, entry in sorted(truth.items())
+    ]
+
+
+def manifest_hash(directory: Path) -> str:
+    """The sha256 of a validation set's ``manifest.json``: which frozen set was scored."""
+    import hashlib
+
+    return hashlib.sha256((directory / "manifest.json").read_bytes()).hexdigest()
 
 
 def model_free_verdict(recording) -> tuple[str, list[dict]]:
@@ -283,6 +309,12 @@ ROW_KEYS = ("name", "set", "expected", "verdict", "right", "wall_s")
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sets", default="shared,clean,injected")
+    ap.add_argument(
+        "--validation-dir",
+        type=Path,
+        default=REPO / "studies/cache/validation_v2",
+        help="the second rig's validation set (studies/second_rig/validation_set.py --out)",
+    )
     ap.add_argument("--full", action="store_true")
     ap.add_argument("--only", nargs="*")
     ap.add_argument("--cases-dir", type=Path)
@@ -299,7 +331,12 @@ def main() -> None:
     say = (lambda s: None) if args.quiet else (lambda s: print(s, flush=True))
     cases = []
     for which in args.sets.split(","):
-        cases += shared_cases() if which == "shared" else set_cases(which)
+        if which == "shared":
+            cases += shared_cases()
+        elif which == "validation":
+            cases += validation_cases(args.validation_dir)
+        else:
+            cases += set_cases(which)
     if args.only:
         cases = [c for c in cases if c["name"] in args.only]
     if args.cases_dir is not None:
@@ -315,9 +352,16 @@ def main() -> None:
     for c in result["confusion"]:
         say(f"  {c['truth']:28s} → {c['verdict']:28s} {c['count']}")
     if args.json:
-        write_result(
-            args.json, {"mode": "full" if args.full else "model-free", **result, "cases": rows}
-        )
+        frozen = {}
+        if "validation" in args.sets.split(","):
+            frozen = {
+                "validation_set": os.path.relpath(args.validation_dir, REPO),
+                "validation_manifest_sha256": manifest_hash(args.validation_dir),
+                "method_commit": args.method_commit,
+            }
+        mode = "full" if args.full else "model-free"
+        doc = {**provenance(), "mode": mode, **frozen, **result, "cases": rows}
+        write_result(args.json, doc)
     if args.result:
         if not args.full:
             ap.error("--result describes a full study: add --full")
