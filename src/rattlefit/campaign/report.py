@@ -14,6 +14,7 @@ figures, units and interval cells).
 from __future__ import annotations
 
 import base64
+import textwrap
 from collections import defaultdict
 from html import escape
 from pathlib import Path
@@ -80,14 +81,23 @@ def igr_figure(recordings: list[dict], pair: str):
             if lab not in labels:
                 handles.append(h)
                 labels.append(lab)
-    fig.suptitle(
+    title = (
         f"gear pair {pair}: IGR against centre distance, measured (markers) and the model at "
-        "the fitted parameters (lines, bars: the realisations' range)",
-        fontsize=10,
+        "the fitted parameters (lines; bars: the realisations' range)"
     )
+    fig.suptitle(wrapped(title, fig), fontsize=10)
     fig.tight_layout()
-    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=6, fontsize=8)
+    ncol = 6 if len(cols) > 1 else 2
+    fig.legend(
+        handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=ncol, fontsize=8
+    )
     return fig
+
+
+def wrapped(title: str, fig) -> str:
+    """``title`` broken into lines that fit ``fig``'s width (about 13 characters an inch at
+    the titles' size)."""
+    return textwrap.fill(title, width=max(40, int(13 * fig.get_figwidth())))
 
 
 def draw_igr(ax, recordings: list[dict]) -> None:
@@ -155,13 +165,13 @@ def parameter_figure(rows: list[dict], name: str):
     handles = [Line2D([], [], marker=m, color=c, ls="", label=lub) for lub, m, c in styles]
     handles.append(Line2D([], [], marker="_", color="k", ls="", ms=9, label="truth"))
     order = "; ".join(f"{k + 1}: {setting_label(s)}" for k, s in enumerate(settings))
-    fig.suptitle(
+    title = (
         f"{name}: estimate and 95 % interval (filled: identified); settings left to right "
-        f"at each distance, {order}",
-        fontsize=9,
+        f"at each distance, {order}"
     )
+    fig.suptitle(wrapped(title, fig), fontsize=9)
     fig.tight_layout()
-    fig.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=6, fontsize=8)
+    fig.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=4, fontsize=8)
     return fig
 
 
