@@ -87,7 +87,7 @@ def last_change(paths, root: Path = ROOT) -> str:
 
 
 def state(doc: dict, name: str, root: Path = ROOT) -> str:
-    """"current", or "stale: ..." naming the paths that changed after the result's commit
+    """ "current", or "stale: ..." naming the paths that changed after the result's commit
     (which commit changed them is left out, so that the state changes only when a result
     goes stale or is re-measured)."""
     paths = tuple(doc.get("measures", DEFAULT_MEASURES))

@@ -61,7 +61,6 @@ def set_overrides(ap: argparse.ArgumentParser, items: list[str]) -> dict:
     return overrides
 
 
-
 def identified(path: Path, features: str, out: Path, extra=()) -> tuple[dict, float | None]:
     """The JSON of ``rattlefit identify PATH --features FEATURES [EXTRA…] -o OUT`` with the
     default options otherwise (run when ``out`` is absent), and the process's wall time
@@ -75,7 +74,6 @@ def identified(path: Path, features: str, out: Path, extra=()) -> tuple[dict, fl
         check=True, stdout=subprocess.DEVNULL,
     )  # fmt: skip
     return json.loads(out.read_text()), time.perf_counter() - t0
-
 
 
 def log_width(p: dict, name: str) -> float:

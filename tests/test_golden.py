@@ -44,9 +44,10 @@ def test_the_stable_tolerances_catch_a_change_of_the_model():
                  duration=golden_pin.MOTION_S, burn_in=0.0).q
         for t in (0.025, 0.025 * 1.01)
     ]  # fmt: skip
-    assert np.max(np.abs(np.asarray(runs[1]) - np.asarray(runs[0]))) > golden_pin.TOLERANCES[
-        "motion"
-    ][1]
+    assert (
+        np.max(np.abs(np.asarray(runs[1]) - np.asarray(runs[0])))
+        > golden_pin.TOLERANCES["motion"][1]
+    )
 
 
 def test_outputs_match_the_golden_pin_to_the_last_bit():
