@@ -28,14 +28,8 @@ from ..quantities import base_name, index_of
 from ..util import atomic_write
 from .manifest import Unit
 
-#: The table's columns, in order.
-COLUMNS = (
-    "fit",
-    "joint",
-    "key",
-    "recording",
-    "recording_name",
-    "recording_sha256",
+#: The recording's fields of :func:`rattlefit.campaign.work.describe` the rows repeat.
+RECORDING_FIELDS = (
     "pair",
     "center_distance_mm",
     "lubrication",
@@ -44,6 +38,16 @@ COLUMNS = (
     "fluctuation_pct",
     "frequency_hz",
     "duration_s",
+)
+#: The table's columns, in order.
+COLUMNS = (
+    "fit",
+    "joint",
+    "key",
+    "recording",
+    "recording_name",
+    "recording_sha256",
+    *RECORDING_FIELDS,
     "parameter",
     "fit_parameter",
     "unit",
@@ -63,17 +67,6 @@ COLUMNS = (
     "posterior_lower",
     "posterior_upper",
     "diagnosis",
-)
-#: The recording's fields of :func:`rattlefit.campaign.work.describe` the rows repeat.
-RECORDING_FIELDS = (
-    "pair",
-    "center_distance_mm",
-    "lubrication",
-    "oil_temperature_c",
-    "mean_speed_rad_s",
-    "fluctuation_pct",
-    "frequency_hz",
-    "duration_s",
 )
 #: The file names of the table in the campaign's directory.
 PARQUET, CSV = "results.parquet", "results.csv"
