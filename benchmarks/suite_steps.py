@@ -14,6 +14,7 @@ import time
 import traceback
 from pathlib import Path
 
+from rattlefit.report import verdict_sentence
 from rattlefit.testing.shared import operating_points, recordings_dir, truth_params
 
 QUICK_RECORDING = "pairII_boundary_65.0_10pct_8Hz"
@@ -569,7 +570,7 @@ def step_diagnose(args):
         "dof": diag.baseline.dof,
         "gap_chi2": diag.gap_chi2[0],
         "verdict": diag.verdict.label,
-        "sentence": diag.verdict.sentence,
+        "sentence": verdict_sentence(diag),
         "effects": [
             {
                 "name": o.name,

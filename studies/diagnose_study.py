@@ -46,6 +46,7 @@ from scipy import stats
 import rattlefit as rf
 from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
 from rattlefit.diagnosis.evidence import POINTS_TO, findings
+from rattlefit.report import verdict_sentence
 from rattlefit.testing.diagnose_sets import DISSIPATION, clean_set, injected_set
 from rattlefit.testing.shared import recordings_dir
 
@@ -157,7 +158,7 @@ def full_detail(diag) -> dict:
     each candidate's χ² with it, support and time."""
     chi2, dof, p = diag.gap_chi2
     return {
-        "sentence": diag.verdict.sentence,
+        "sentence": verdict_sentence(diag),
         "gap_chi2": round(chi2, 2),
         "dof": dof,
         "gap_p": p,

@@ -102,6 +102,7 @@ def compute_pipelines() -> dict:
         read_recording,
         sample,
     )
+    from rattlefit.report import diagnosis_document
 
     out = {}
     first = None
@@ -120,7 +121,7 @@ def compute_pipelines() -> dict:
     out["sample"] = strip(post.to_json())
     rec = read_recording(DATA / DIAGNOSE_FILE)
     options = DiagnoseOptions(effects=DIAGNOSE_EFFECTS, fit=FitOptions.quick(seed=SEED))
-    out["diagnose"] = strip(diagnose([rec], options).to_json())
+    out["diagnose"] = strip(diagnosis_document(diagnose([rec], options)))
     return json.loads(json.dumps(out))  # what a JSON file holds: floats by their repr
 
 

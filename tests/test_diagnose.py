@@ -18,7 +18,8 @@ import rattlefit as rf
 from rattlefit import FitOptions, synthesize
 from rattlefit.cli import main
 from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
-from rattlefit.diagnosis.result import Diagnosis, EffectOutcome, baseline_warnings, gap_closed
+from rattlefit.diagnosis.outcome import EffectOutcome, gap_closed
+from rattlefit.diagnosis.result import Diagnosis, baseline_warnings
 from rattlefit.diagnosis.screening import (
     FREE_FACTORS,
     SCREEN_DECADES,
@@ -27,11 +28,13 @@ from rattlefit.diagnosis.screening import (
     screen_points,
 )
 from rattlefit.diagnosis.trial import Trial, candidate_problem, effect_specs, judge_effect
+from rattlefit.diagnosis.verdict import closing, rivals, seen_in_bands
 from rattlefit.errors import RattlefitError
 from rattlefit.inference.parameters import Z_END
 from rattlefit.inference.problem import build_problem
 from rattlefit.io.recording import OperatingPoint, write_recording
 from rattlefit.physics import effects as fx
+from rattlefit.report import verdict_sentence
 
 #: The effects offered in the CI tests: the withheld one and two that could mimic it in the
 #: band spectrum (a gap error at the mesh order, a gap error per revolution), which the
@@ -273,10 +276,10 @@ def test_a_band_candidate_explains_the_gap_when_it_leaves_noise_or_closes_most_o
         chi2_without=59019.5,
     )
     assert diag.band_gap
-    assert (diag.explaining() is outcome) == named
+    assert (diag.verdict.explaining is outcome) == named
     assert diag.verdict.kind == ("effect" if named else "unexplained")
     assert diag.verdict.effects == (("flank_friction",) if named else ())
-    assert ("significant rest" in diag.verdict.sentence) == (named and p_after < 0.01)
+    assert ("significant rest" in verdict_sentence(diag)) == (named and p_after < 0.01)
 
 
 def test_an_effect_whose_simulation_fails_is_a_failed_outcome_not_a_verdict(monkeypatch):
@@ -310,7 +313,7 @@ def test_an_effect_whose_simulation_fails_is_a_failed_outcome_not_a_verdict(monk
         chi2_without=59.7,
     )
     assert diag.verdict.kind == "unexplained"
-    assert "mesh_damping" in diag.verdict.sentence  # the least misfit among those judged
+    assert "mesh_damping" in verdict_sentence(diag)  # the least misfit among those judged
     text = format_diagnosis(diag)
     assert "failed: pitch_point_friction (its simulation failed" in text
     assert "59.7 → failed" in text
@@ -349,9 +352,9 @@ def test_two_effects_are_named_together_only_when_they_close_clearly_more_than_e
     diag = _diagnosis_of([first, second, pair], 300.0)
     assert diag.verdict.kind == ("effects" if beyond else "unexplained")
     if beyond:
-        assert diag.explaining() is pair
+        assert diag.verdict.explaining is pair
         assert diag.verdict.effects == ("flank_friction", "speed_dependent_drag")
-        assert "flank_friction and speed_dependent_drag together" in diag.verdict.sentence
+        assert "flank_friction and speed_dependent_drag together" in verdict_sentence(diag)
     assert json.loads(json.dumps(pair.as_dict(), allow_nan=False))["beyond_single"] == beyond
 
 
@@ -384,16 +387,16 @@ def test_a_gap_that_candidates_of_different_mechanisms_close_alike_is_not_named(
     chi2_without, rows = case
     outcomes = [_outcome(n, chi2_without, c, p) for n, c, p in rows]
     diag = _diagnosis_of(outcomes, chi2_without)
-    assert diag.closing() is outcomes[0]  # the least misfit closes it either way
+    assert closing(outcomes, diag.evidence) is outcomes[0]  # the least misfit closes it either way
     if named is None:
-        assert diag.verdict.kind == "unexplained" and diag.explaining() is None
-        assert [o.name for o in diag.indistinguishable()] == [n for n, _, _ in rows]
-        assert "cannot tell them apart" in diag.verdict.sentence
+        assert diag.verdict.kind == "unexplained" and diag.verdict.explaining is None
+        assert [o.name for o in diag.verdict.indistinguishable] == [n for n, _, _ in rows]
+        assert "cannot tell them apart" in verdict_sentence(diag)
         doc = diag.to_json()
         assert doc["indistinguishable"] == [n for n, _, _ in rows]
     else:
         # mesh damping is another form of the same mechanism; the drag leaves a significant rest
-        assert diag.rivals() == [] and diag.verdict.effects == (named,)
+        assert rivals(outcomes, diag.evidence) == [] and diag.verdict.effects == (named,)
 
 
 def _runout_finding():
@@ -428,12 +431,12 @@ def test_beside_an_effect_the_encoders_found_another_is_named_only_together_with
         )
         outcomes = [*outcomes, pair]
     diag = dataclasses.replace(_diagnosis_of(outcomes, 86.4), findings=(_runout_finding(),))
-    assert diag.seen_in_bands == {"runout"}
+    assert seen_in_bands(outcomes, diag.evidence) == {"runout"}
     if beyond:
         assert diag.verdict.label == "runout+mesh_damping"
     else:
         assert diag.verdict.label == "runout"
-        assert "remains unexplained" in diag.verdict.sentence
+        assert "remains unexplained" in verdict_sentence(diag)
     # without the finding, run-out could not be named, and the damping alone explains
     assert _diagnosis_of(outcomes, 86.4).verdict.label == "mesh_damping"
 
@@ -460,7 +463,7 @@ def test_a_viscosity_drift_is_named_only_when_the_recording_shows_a_drift(drift_
         diag = dataclasses.replace(diag, findings=(finding,))
     assert diag.verdict.label == ("viscosity_drift" if drift_found else "unexplained")
     options = DiagnoseOptions()
-    tried, skipped = effects_to_try(options, diag.seen, band_gap=True)
+    tried, skipped = effects_to_try(options, diag.evidence.seen, band_gap=True)
     assert ("viscosity_drift" in tried) == drift_found
     assert ("viscosity_drift" in skipped) != drift_found
     assert "flank_friction" in tried and "runout" in skipped  # the rest as before
@@ -670,7 +673,7 @@ def test_pairs_start_from_the_first_effect_fitted_until_settled(monkeypatch, set
     fitted = {"flank_friction": np.zeros(3), "mesh_damping": np.zeros(3)}
     diag = _diagnosis_of([friction, damping], 55010.0)
     outcomes, pairs = diagnose_module.try_pairs(
-        trial, diag, fitted, np.zeros(3), 0.01, lambda msg: None
+        trial, diag.outcomes, diag.evidence, 55010.0, fitted, np.zeros(3), 0.01, lambda msg: None
     )
     assert outcomes[0].chi2_with == settled.chi2_with  # the settled outcome, in its place
     np.testing.assert_array_equal(fitted["flank_friction"], np.ones(3))
@@ -694,11 +697,11 @@ SHARED_RUNOUT = "pairI_boundary_65.8_20pct_16Hz_runout"
 def test_a_clean_independent_recording_is_given_none(shared_recordings, shared_truth):
     assert shared_truth[SHARED_CLEAN]["unmodelled_effects"] == []
     diag = diagnose([rf.read_recording(shared_recordings / f"{SHARED_CLEAN}.h5")])
-    assert diag.verdict.kind == "none", diag.to_json()["sentence"]
+    assert diag.verdict.kind == "none", verdict_sentence(diag)
 
 
 def test_an_independent_recording_with_runout_is_given_runout(shared_recordings, shared_truth):
     assert "runout" in " ".join(shared_truth[SHARED_RUNOUT]["unmodelled_effects"])
     rec = rf.read_recording(shared_recordings / f"{SHARED_RUNOUT}.h5")
-    doc = diagnose([rec], DiagnoseOptions(effects=TRIED)).to_json()
+    doc = rf.report.diagnosis_document(diagnose([rec], DiagnoseOptions(effects=TRIED)))
     assert doc["verdict"] == "runout", doc["sentence"]

@@ -658,7 +658,7 @@ def diagnose(
     from .inference.options import FitOptions
     from .io.recording import read_recording
     from .physics.effects import EFFECTS
-    from .report import format_diagnosis, plot_diagnosis
+    from .report import diagnosis_document, format_diagnosis, plot_diagnosis
 
     names = tuple(EFFECTS) if effects is None else tuple(e.strip() for e in effects.split(","))
     unknown = [n for n in names if n not in EFFECTS]
@@ -677,7 +677,7 @@ def diagnose(
     diag = run(recordings, options, progress=_progress(quiet))
     _emit(
         format_diagnosis(diag),
-        diag.to_json(),
+        diagnosis_document(diag),
         output,
         plot_dir,
         lambda d: plot_diagnosis(diag, d, recordings=recordings),
@@ -685,7 +685,7 @@ def diagnose(
     _write_report(
         report_file,
         fit=diag.baseline.to_json(),
-        diagnosis=diag.to_json(),
+        diagnosis=diagnosis_document(diag),
         recordings=recordings,
     )
 

@@ -329,9 +329,10 @@ def diagnose_stage(options: CampaignOptions, result, recordings) -> dict:
     synthetic likelihood, else from one of its own with the same options on it."""
     from ..diagnosis.diagnose import DiagnoseOptions, diagnose
     from ..physics.effects import EFFECTS
+    from ..report.wording import diagnosis_document
 
     synthetic = options.fit.likelihood.method == "synthetic"
     fit = options.fit if synthetic else options.fit.replace(likelihood="synthetic")
     diag_options = DiagnoseOptions(effects=options.effects or tuple(EFFECTS), fit=fit)
     baseline = result if synthetic and result is not None else None
-    return {"doc": diagnose(recordings, diag_options, baseline=baseline).to_json()}
+    return {"doc": diagnosis_document(diagnose(recordings, diag_options, baseline=baseline))}

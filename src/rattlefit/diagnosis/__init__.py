@@ -2,6 +2,17 @@
 and how far it shrinks once that effect is in (:func:`diagnose`)."""
 
 from .diagnose import DiagnoseOptions, diagnose
-from .result import MISSED_Z, Diagnosis, EffectOutcome
+from .outcome import EffectOutcome
+from .result import MISSED_Z, Diagnosis
+from .verdict import Evidence, Verdict, decide
 
-__all__ = ["MISSED_Z", "DiagnoseOptions", "Diagnosis", "EffectOutcome", "diagnose"]
+__all__ = [
+    "MISSED_Z",
+    "DiagnoseOptions",
+    "Diagnosis",
+    "EffectOutcome",
+    "Evidence",
+    "Verdict",
+    "decide",
+    "diagnose",
+]

@@ -33,13 +33,13 @@ Beside the bands, the drive-cycle-folded statistics of the recordings are compar
 model without effects (:mod:`rattlefit.diagnosis.cycle`): where in the speed fluctuation,
 and on which flank, it misses.
 
-The verdict (:class:`~rattlefit.diagnosis.result.Verdict`) is ``"none"`` when the model
+The verdict (:func:`~rattlefit.diagnosis.verdict.decide`) is ``"none"`` when the model
 without extra effects fits the band spectrum (its χ² after the re-fit, on the fresh
 realisations, has p ≥ ``significance``) and its drive-cycle statistics, and no model-free
 test stands out; the effects that significant model-free tests point to are named; a band
 candidate is named when it is supported and leaves a misfit consistent with noise, no
 candidate of another mechanism does too
-(:meth:`~rattlefit.diagnosis.result.Diagnosis.rivals`), and,
+(:func:`~rattlefit.diagnosis.verdict.rivals`), and,
 beside an effect the encoders found, only together with that effect (it is known to be
 there, so the other candidate must close clearly more than it alone); a significant gap
 that nothing explains is ``"unexplained"``.
@@ -74,8 +74,9 @@ from ..reproducibility import platform_info
 from ..util import stamped
 from .cycle import cycle_gap
 from .evidence import ENCODER_VISIBLE, FOUND_ONLY, candidate_static, findings
+from .outcome import EffectOutcome
 from .pairs import pair_candidates, pair_name, settled_single, try_pair
-from .result import Diagnosis, EffectOutcome, baseline_warnings, finding_phrase
+from .result import Diagnosis, baseline_warnings
 from .screening import distinct_rows, free_alternatives, screen
 from .size import size_intervals
 from .trial import (
@@ -91,6 +92,7 @@ from .trial import (
     settled_path,
     validated,
 )
+from .verdict import Evidence, decide
 
 #: The final χ²s are measured on this many times the fit's covariance realisations: near a
 #: regime boundary the χ² of one set of 24 can be 11 and of another 67 at the same point
@@ -279,35 +281,44 @@ def try_effects(trial: Trial, names, z_base, chi2_without, level, say):
     return sorted(outcomes, key=lambda o: (bool(o.failure), o.chi2_with)), fitted
 
 
-def try_pairs(trial: Trial, diag: Diagnosis, fitted: dict, z_base, level: float, say):
-    """When the band gap is significant and the first candidate of
+def try_pairs(
+    trial: Trial,
+    outcomes: list[EffectOutcome],
+    evidence: Evidence,
+    chi2_without: float,
+    fitted: dict,
+    z_base,
+    level: float,
+    say,
+):
+    """When the band gap is significant (``evidence``) and the first candidate of
     :func:`~rattlefit.diagnosis.pairs.pair_candidates` (an effect the encoders found, else
     the best supported one) leaves a significant misfit: that candidate fitted on until
     settled (:func:`~rattlefit.diagnosis.pairs.settled_single`) and, if it still leaves one,
     fitted together with each of the next supported ones. Returns the single outcomes (the
     settled one in its place, least misfit first) and the pairs' outcomes; ``fitted`` gets
     every new point."""
-    outcomes, pairs = diag.outcomes, pair_candidates(diag.outcomes, diag.seen)
-    if not diag.band_gap or not pairs or pairs[0][0].p_after >= diag.significance:
+    pairs = pair_candidates(outcomes, evidence.seen)
+    if not evidence.band_gap or not pairs or pairs[0][0].p_after >= evidence.significance:
         return outcomes, []
     first = pairs[0][0]
     say(f"fitting {first.name} on until settled before pairing it …")
     settled, fitted[first.name] = settled_single(
-        trial, first, fitted[first.name], z_base, diag.chi2_without, level
+        trial, first, fitted[first.name], z_base, chi2_without, level
     )
     say(f"  {outcome_phrase(settled)}")
     outcomes = sorted(
         (settled if o is first else o for o in outcomes),
         key=lambda o: (bool(o.failure), o.chi2_with),
     )
-    if settled.p_after >= diag.significance:
+    if settled.p_after >= evidence.significance:
         return outcomes, []
     out = []
     for _, second in pairs:
         say(f"fitting {settled.name} and {second.name} together …")
         t0 = time.perf_counter()
         outcome, fitted[pair_name(settled, second)] = try_pair(
-            trial, settled, second, fitted, diag.chi2_without, level
+            trial, settled, second, fitted, chi2_without, level
         )
         outcome = dataclasses.replace(outcome, wall_time=time.perf_counter() - t0)
         say(f"  {outcome_phrase(outcome)}")
@@ -315,13 +326,17 @@ def try_pairs(trial: Trial, diag: Diagnosis, fitted: dict, z_base, level: float,
     return outcomes, out
 
 
-def with_interval(trial: Trial, diag: Diagnosis, fitted: dict, say) -> Diagnosis:
-    """``diag`` with the size of the band candidate its verdict names estimated with an
-    interval (:func:`~rattlefit.diagnosis.size.size_intervals`): its ``values`` hold the
-    profile's estimate, its ``intervals`` the 95 % interval."""
-    named = diag.explaining()
+def with_interval(
+    trial: Trial, outcomes: list[EffectOutcome], evidence: Evidence, fitted: dict, say
+) -> list[EffectOutcome]:
+    """``outcomes`` with the size of the band candidate the verdict names
+    (:func:`~rattlefit.diagnosis.verdict.decide`) estimated with an interval
+    (:func:`~rattlefit.diagnosis.size.size_intervals`): its ``values`` hold the profile's
+    estimate, its ``intervals`` the 95 % interval. Sizing changes nothing the verdict is
+    decided on."""
+    named = decide(outcomes, evidence).explaining
     if named is None:
-        return diag
+        return outcomes
     say(f"profiling the size of {named.name} …")
     profiled = size_intervals(trial, named.name, fitted[named.name], named.chi2_with)
     sized = dataclasses.replace(
@@ -329,8 +344,7 @@ def with_interval(trial: Trial, diag: Diagnosis, fitted: dict, say) -> Diagnosis
         values={**named.values, **{k: best for k, (best, _, _) in profiled.items()}},
         intervals={k: (lo, hi) for k, (_, lo, hi) in profiled.items()},
     )
-    outcomes = [sized if o is named else o for o in diag.outcomes]
-    return dataclasses.replace(diag, outcomes=outcomes)
+    return [sized if o is named else o for o in outcomes]
 
 
 def drive_cycle(trial: Trial, z_base, recordings, baseline: FitResult, level: float, say):
@@ -376,7 +390,7 @@ def model_free(recordings, options: DiagnoseOptions, say):
     found = findings(recordings, options.significance)
     for f in found:
         if f.significant:
-            say(f"model-free evidence: {finding_phrase(f)}")
+            say(f"model-free evidence: {f.effect} ({f.test.name}, p = {f.test.p_value:.2g})")
     return found, {f.effect for f in found if f.significant}
 
 
@@ -429,15 +443,20 @@ def diagnose(
         say(f"not fitting {name}: {why}")
     level = options.significance / max(len(tried), 1)  # Bonferroni
     outcomes, fitted = try_effects(trial, tried, z_base, chi2_without, level, say)
+    evidence = Evidence(tuple(found), bool(gap), cycle.significant, options.significance)
+    outcomes, pairs = try_pairs(trial, outcomes, evidence, chi2_without, fitted, z_base, level, say)
+    outcomes = with_interval(trial, outcomes + pairs, evidence, fitted, say)
+    wall = time.perf_counter() - t_start
+    say(f"done in {wall:.0f} s")
     bands = trial.problem.bands
-    diag = Diagnosis(
+    return Diagnosis(
         baseline=baseline,
         residuals=(trial.data - np.stack(baseline.fitted_features)) / np.stack(baseline.sigma),
         band_centers=bands.centers,
         band_edges=bands.edges,
         outcomes=outcomes,
         seed=baseline.options.seed,
-        wall_time=0.0,
+        wall_time=wall,
         refit_costs=refit_costs,
         warnings=warnings,
         findings=tuple(found),
@@ -447,8 +466,3 @@ def diagnose(
         platform=platform,
         drive_cycle=cycle,
     )
-    outcomes, pairs = try_pairs(trial, diag, fitted, z_base, level, say)
-    diag = with_interval(trial, dataclasses.replace(diag, outcomes=outcomes + pairs), fitted, say)
-    wall = time.perf_counter() - t_start
-    say(f"done in {wall:.0f} s")
-    return dataclasses.replace(diag, wall_time=wall)

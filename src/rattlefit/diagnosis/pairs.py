@@ -18,7 +18,7 @@ import dataclasses
 
 import numpy as np
 
-from .result import EffectOutcome
+from .outcome import EffectOutcome
 from .trial import (
     Z95_ONE_SIDED,
     Trial,

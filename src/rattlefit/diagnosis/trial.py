@@ -25,7 +25,7 @@ from ..inference.problem import Problem
 from ..inference.profile import polish_profile
 from ..io.recording import Recording
 from ..physics.effects import absent, effect_class
-from .result import EffectOutcome, gap_closed
+from .outcome import EffectOutcome, gap_closed
 
 #: One-sided 95 % quantile of the standard normal (the χ² drop's Monte Carlo allowance).
 Z95_ONE_SIDED = 1.645

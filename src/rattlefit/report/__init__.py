@@ -4,8 +4,10 @@ report of an identification, a posterior and a diagnosis."""
 from .document import html_report, write_report
 from .plots import plot_diagnosis, plot_fit, plot_posterior
 from .tables import format_diagnosis, format_posterior, format_suggestions, format_table
+from .wording import diagnosis_document, verdict_sentence
 
 __all__ = [
+    "diagnosis_document",
     "format_diagnosis",
     "format_posterior",
     "format_suggestions",
@@ -14,5 +16,6 @@ __all__ = [
     "plot_diagnosis",
     "plot_fit",
     "plot_posterior",
+    "verdict_sentence",
     "write_report",
 ]

@@ -10,6 +10,7 @@ from ..inference.posterior import Posterior
 from ..inference.profile import CHI2_1_95
 from ..inference.result import FitResult, identified_ratio
 from ..quantities import FILM, base_name, display
+from .wording import finding_size, verdict_sentence
 
 #: The parameters the table shows first: the films, the drag torque, the viscosity and the
 #: squeeze momenta; the nuisances follow in a block of their own.
@@ -220,20 +221,14 @@ def cycle_lines(diag: Diagnosis) -> list[str]:
 def format_diagnosis(diag: Diagnosis) -> str:
     """The verdict in one sentence, then the model-free findings, where the model misses the
     bands and the drive cycle, and each effect's χ² without and with it."""
-    verdict = diag.verdict
-    lines = [f"verdict: {verdict.label} — {verdict.sentence}", ""]
+    lines = [f"verdict: {diag.verdict.label} — {verdict_sentence(diag)}", ""]
     lines.append(f"model-free tests (counted below p = {_level(diag):.2g} and the size floor):")
     for f in diag.findings:
         t = f.test
-        if t.name == "drift":
-            size = f"{t.amplitude:+.3g} ({t.detail.get('statistic')})"
-        elif t.name == "drive_order":
-            size = f"{t.amplitude:.3g} rad/s² (order {t.detail.get('order')})"
-        else:
-            size = f"{1e6 * t.amplitude:.1f} ± {1e6 * t.amplitude_sd:.1f} µm"
         mark = "  ← " + f.effect if f.significant else ""
         lines.append(
-            f"  recording {f.recording}: {t.name:18s} {size:24s} p = {t.p_value:.2g}{mark}"
+            f"  recording {f.recording}: {t.name:18s} {finding_size(t):30s} "
+            f"p = {t.p_value:.2g}{mark}"
         )
     lines.append("")
     missed = diag.missed_bands

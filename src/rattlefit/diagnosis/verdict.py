@@ -1,0 +1,193 @@
+"""The verdict: which effects the evidence names, decided once from the judged outcomes.
+
+:func:`decide` is a pure function of the effects' outcomes
+(:class:`~rattlefit.diagnosis.outcome.EffectOutcome`), the model-free findings
+(:class:`~rattlefit.diagnosis.evidence.Finding`) and whether the model without effects misses
+the band spectrum and the drive-cycle statistics. Its wording is
+:func:`rattlefit.report.verdict_sentence`'s.
+
+The rules: the effects that significant model-free tests point to are named; a band candidate
+is named when it is *nameable* (:func:`nameable`), closes the band gap (it leaves a misfit
+consistent with noise or removes at least :data:`CLOSES_MOST` of the excess) and no candidate
+of another mechanism also leaves a misfit consistent with noise (:func:`rivals`): a gap that
+several physics close alike is a model-form difference as likely as any of them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+from ..physics.effects import mechanism_of
+from .evidence import FOUND_ONLY, Finding
+from .outcome import EffectOutcome
+
+#: A supported candidate that removes at least this share of the excess band misfit
+#: (``gap_closed``) explains the band gap even when what it leaves is still significant: the
+#: diagnosis re-fits only a, T_b and the effect's size, with the other parameters held where
+#: the identification put them without the effect, so a right effect can leave a remainder.
+CLOSES_MOST = 0.9
+
+
+@dataclasses.dataclass(frozen=True)
+class Evidence:
+    """What every candidate is judged against.
+
+    findings : the model-free tests of every recording.
+    band_gap : the model without extra effects misses the band spectrum significantly.
+    cycle_missed : it misses the drive-cycle statistics beyond their family-wise threshold.
+    significance : the family-wise level (a candidate leaves noise when its ``p_after`` is
+        at least this).
+    """
+
+    findings: tuple[Finding, ...] = ()
+    band_gap: bool = False
+    cycle_missed: bool = False
+    significance: float = 0.01
+
+    @property
+    def seen(self) -> frozenset[str]:
+        """The effects that significant model-free tests point to."""
+        return frozenset(f.effect for f in self.findings if f.significant)
+
+
+@dataclasses.dataclass(frozen=True)
+class Verdict:
+    """The diagnosis' conclusion.
+
+    kind : ``"none"`` (no significant gap in any domain), ``"unexplained"`` (a significant
+        gap, in the band spectrum or the drive-cycle statistics, that no candidate
+        explains), ``"effect"`` or ``"effects"`` (one or two named).
+    effects : the named effects, model-free findings first.
+    found : the most significant finding of each effect the model-free tests name.
+    explaining : the band candidate that explains the band gap, or None.
+    indistinguishable : when candidates of different mechanisms close the gap alike, the one
+        that closes it best and each other one that leaves noise, the least misfit first.
+    band_gap, cycle_missed : as in :class:`Evidence`.
+    """
+
+    kind: str
+    effects: tuple[str, ...]
+    found: tuple[Finding, ...]
+    explaining: EffectOutcome | None
+    indistinguishable: tuple[EffectOutcome, ...]
+    band_gap: bool
+    cycle_missed: bool
+
+    @property
+    def label(self) -> str:
+        """``"none"``, ``"unexplained"`` or the effects joined by ``+``."""
+        return "+".join(self.effects) if self.effects else self.kind
+
+    @property
+    def band_gap_explained(self) -> bool:
+        """A band candidate closes the band gap."""
+        return self.explaining is not None
+
+
+def found_effects(findings: Sequence[Finding]) -> list[tuple[str, Finding]]:
+    """The effects that significant findings name, each with its most significant finding."""
+    best: dict[str, Finding] = {}
+    for f in sorted(findings, key=lambda f: f.test.p_value):
+        if f.significant and f.effect not in best:
+            best[f.effect] = f
+    return list(best.items())
+
+
+def seen_in_bands(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> frozenset[str]:
+    """The effects the model-free tests found that were also fitted to the band spectrum
+    (and whose fit did not fail): the encoders show them present, so a band explanation must
+    hold them."""
+    fitted = {o.name for o in outcomes if not o.failure and "+" not in o.name}
+    return evidence.seen & fitted
+
+
+def nameable(o: EffectOutcome, outcomes: Sequence[EffectOutcome], evidence: Evidence) -> bool:
+    """``o`` could be named: supported; for an effect with a model-free test
+    (:data:`~rattlefit.diagnosis.evidence.FOUND_ONLY`), found by that test too; holding every
+    effect of :func:`seen_in_bands` (another effect is named beside a seen one only when the
+    two together close clearly more than the seen one alone); two effects together only when
+    they close clearly more than the better alone (``beyond_single``)."""
+    return (
+        o.supported
+        and all(n not in FOUND_ONLY or n in evidence.seen for n in o.effects)
+        and seen_in_bands(outcomes, evidence) <= set(o.effects)
+        and (len(o.effects) == 1 or o.beyond_single)
+    )
+
+
+def within_noise(o: EffectOutcome, outcomes: Sequence[EffectOutcome], evidence: Evidence) -> bool:
+    """``o`` is nameable and leaves a misfit consistent with noise."""
+    return nameable(o, outcomes, evidence) and not o.failure and o.p_after >= evidence.significance
+
+
+def closing(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> EffectOutcome | None:
+    """The band candidate that closes the band gap best: nameable, leaving a misfit
+    consistent with noise or removing at least :data:`CLOSES_MOST` of the excess; the least
+    misfit first; None when there is no band gap or no candidate closes it."""
+    if not evidence.band_gap:
+        return None
+    closes = [
+        o
+        for o in outcomes
+        if nameable(o, outcomes, evidence)
+        and (o.p_after >= evidence.significance or o.gap_closed >= CLOSES_MOST)
+    ]
+    return min(closes, key=lambda o: o.chi2_with) if closes else None
+
+
+def rivals(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> list[EffectOutcome]:
+    """Nameable candidates of another mechanism than :func:`closing`'s
+    (:func:`~rattlefit.physics.effects.mechanism_of`) that also leave a misfit consistent
+    with noise: the band spectrum cannot tell them from it."""
+    best = closing(outcomes, evidence)
+    if best is None:
+        return []
+    held = {mechanism_of(n) for n in best.effects}
+    return [
+        o
+        for o in outcomes
+        if o is not best
+        and within_noise(o, outcomes, evidence)
+        and not {mechanism_of(n) for n in o.effects} <= held
+    ]
+
+
+def indistinguishable(
+    outcomes: Sequence[EffectOutcome], evidence: Evidence
+) -> tuple[EffectOutcome, ...]:
+    """When there are :func:`rivals`: the candidate that closes the band gap and every other
+    one that leaves a misfit consistent with noise, the least misfit first (empty
+    otherwise)."""
+    if not rivals(outcomes, evidence):
+        return ()
+    best = closing(outcomes, evidence)
+    alike = [o for o in outcomes if o is not best and within_noise(o, outcomes, evidence)]
+    return (best, *sorted(alike, key=lambda o: o.chi2_with))
+
+
+def decide(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> Verdict:
+    """The :class:`Verdict` of ``outcomes`` against ``evidence``: the effects named by
+    significant model-free findings, then the band candidate that explains the band gap
+    (:func:`closing`, unless it has :func:`rivals`)."""
+    found = found_effects(evidence.findings)
+    alike = indistinguishable(outcomes, evidence)
+    explaining = None if alike else closing(outcomes, evidence)
+    names = [name for name, _ in found]
+    if explaining is not None:
+        names += [n for n in explaining.effects if n not in names]
+    if names:
+        kind = "effect" if len(names) == 1 else "effects"
+    elif evidence.band_gap or evidence.cycle_missed:
+        kind = "unexplained"
+    else:
+        kind = "none"
+    return Verdict(
+        kind=kind,
+        effects=tuple(names),
+        found=tuple(f for _, f in found),
+        explaining=explaining,
+        indistinguishable=alike,
+        band_gap=evidence.band_gap,
+        cycle_missed=evidence.cycle_missed,
+    )

@@ -1,0 +1,128 @@
+"""A diagnosis in words: its findings, the sizes of what it names, its verdict in one
+sentence. The decisions are :func:`rattlefit.diagnosis.verdict.decide`'s; this module only
+words them."""
+
+from __future__ import annotations
+
+from ..diagnosis.evidence import Finding
+from ..diagnosis.outcome import EffectOutcome
+from ..diagnosis.result import Diagnosis
+from ..features.orders import AngleTest
+
+
+def finding_size(t: AngleTest) -> str:
+    """A model-free test's size: a drift's change, a drive ripple's acceleration amplitude
+    and order, or a pattern's gap error in µm with its standard error."""
+    if t.name == "drift":
+        return f"{t.detail.get('statistic')} changes by {t.amplitude:+.3g}"
+    if t.name == "drive_order":
+        return f"{t.amplitude:.3g} rad/s² at order {t.detail.get('order')}"
+    return f"{1e6 * t.amplitude:.1f} ± {1e6 * t.amplitude_sd:.1f} µm"
+
+
+def finding_phrase(f: Finding) -> str:
+    """One finding in words, e.g. ``runout (runout.secondary: 40.2 ± 2.7 µm, p = 4e-192)``."""
+    return f"{f.effect} ({f.test.name}: {finding_size(f.test)}, p = {f.test.p_value:.2g})"
+
+
+def size_phrase(o: EffectOutcome) -> str:
+    """The fitted sizes of ``o`` that have an interval, e.g.
+    ``coefficient 0.16 (95 %: 0.05–0.4)`` (lengths in µm)."""
+    parts = []
+    for key, value in o.values.items():
+        if key not in o.intervals:
+            continue
+        lo, hi = o.intervals[key]
+        unit, scale = ("µm", 1e6) if o.units[key] == "m" else (o.units[key], 1.0)
+        unit = "" if unit == "1" else f" {unit}"
+        parts.append(f"{key} {scale * value:.3g}{unit} (95 %: {scale * lo:.3g}–{scale * hi:.3g})")
+    return "; ".join(parts)
+
+
+def fit_words(diag: Diagnosis) -> str:
+    """The band fit of the model without effects, e.g. ``χ² 56.2 on 28 dof, p = 0.0012``."""
+    chi2, dof, p = diag.gap_chi2
+    return f"χ² {chi2:.1f} on {dof} dof, p = {p:.2g}"
+
+
+def cycle_words(diag: Diagnosis) -> str:
+    """Where the drive-cycle statistics miss, or empty when they do not."""
+    if not diag.cycle_missed:
+        return ""
+    return (
+        f"the drive-cycle statistics miss: {diag.drive_cycle.phrase()} "
+        f"(p = {diag.drive_cycle.p_value:.2g})"
+    )
+
+
+def unexplained_gap(diag: Diagnosis) -> str:
+    """The sentence of a significant band gap that no candidate is named for: candidates of
+    different mechanisms close it alike, or none closes it (the least misfit any leaves is
+    given)."""
+    cycle = f"; {cycle_words(diag)}" if diag.cycle_missed else ""
+    alike = diag.verdict.indistinguishable
+    if alike:
+        names = ", ".join(o.name for o in alike[:-1]) + f" and {alike[-1].name}"
+        left = ", ".join(f"{o.chi2_with:.1f}" for o in alike)
+        return (
+            f"A significant gap that candidates of different mechanisms close alike: "
+            f"{fit_words(diag)}; {names} each leave a misfit within the noise (χ² {left}), so "
+            f"the band spectrum cannot tell them apart, nor from a model-form difference{cycle}."
+        )
+    judged = [o for o in diag.outcomes if not o.failure]
+    best = min(judged, key=lambda o: o.chi2_with, default=None)
+    tried = (
+        ""
+        if best is None
+        else f"; the candidate that leaves the least misfit, {best.name}, leaves "
+        f"χ² {best.chi2_with:.1f} (p = {best.p_after:.2g})"
+    )
+    return f"A significant gap that no candidate explains: {fit_words(diag)}{tried}{cycle}."
+
+
+def explaining_phrase(diag: Diagnosis) -> str:
+    """The band candidate the verdict names, its size and the share of the misfit it
+    closes."""
+    o = diag.verdict.explaining
+    rest = "" if o.p_after >= diag.significance else ", a significant rest"
+    size = f"{size_phrase(o)}; " if o.intervals else ""
+    who = " and ".join(o.effects) + (" together" if len(o.effects) > 1 else "")
+    return (
+        f"{who} ({size}closes {100 * o.gap_closed:.0f} % of the band misfit: "
+        f"χ² {o.chi2_without:.1f} → {o.chi2_with:.1f}{rest})"
+    )
+
+
+def verdict_sentence(diag: Diagnosis) -> str:
+    """The verdict of ``diag`` (:attr:`~rattlefit.diagnosis.result.Diagnosis.verdict`) in one
+    plain sentence."""
+    v = diag.verdict
+    if v.kind == "none":
+        return (
+            f"No significant gap: the model without extra effects fits the band spectrum "
+            f"({fit_words(diag)}), its drive-cycle statistics, and no angle- or time-domain "
+            "test stands out."
+        )
+    if v.kind == "unexplained" and not v.band_gap:
+        return (
+            f"A gap that no candidate explains: the band spectrum fits ({fit_words(diag)}), "
+            f"but {cycle_words(diag)}."
+        )
+    if v.kind == "unexplained":
+        return unexplained_gap(diag)
+    parts = [finding_phrase(f) for f in v.found]
+    found = {f.effect for f in v.found}
+    if v.explaining is not None and not set(v.explaining.effects) <= found:
+        parts.append(explaining_phrase(diag))
+    sentence = "Found " + " and ".join(parts)
+    if v.band_gap and v.explaining is None:
+        sentence += f"; the band misfit ({fit_words(diag)}) remains unexplained"
+    return sentence + "."
+
+
+def diagnosis_document(diag: Diagnosis) -> dict:
+    """The JSON document of ``diag`` (:meth:`~rattlefit.diagnosis.result.Diagnosis.to_json`)
+    with its verdict's sentence (:func:`verdict_sentence`): what ``rattlefit diagnose -o``
+    writes."""
+    doc = diag.to_json()
+    return {**doc, "sentence": verdict_sentence(diag)}
