@@ -37,3 +37,62 @@ def test_the_results_tables_match_the_result_files():
         text=True,
     )
     assert out.returncode == 0, out.stdout + out.stderr
+
+
+def _remeasure():
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        import readme_table
+        import remeasure
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    return readme_table, remeasure
+
+
+def test_every_tabled_result_can_be_measured_again():
+    # each result file has a recipe (a script that writes it) or says how it is measured by
+    # hand; every headline figure the README can show has a recipe; a recipe names a script
+    # that exists and options that script parses
+    readme_table, remeasure = _remeasure()
+    docs = readme_table.load_results(readme_table.RESULT_DIRS)
+    names = {Path(n).name for n, _ in docs}
+    assert not set(remeasure.RECIPES) & set(remeasure.BY_HAND)
+    assert names <= set(remeasure.RECIPES) | set(remeasure.BY_HAND), names
+    assert not (set(remeasure.RECIPES) | set(remeasure.BY_HAND)) - names  # no dead entry
+    headlines = {Path(n).name for n, d in docs if d.get("headline")}
+    assert headlines <= set(remeasure.RECIPES), headlines - set(remeasure.RECIPES)
+    for name, (command, minutes) in remeasure.RECIPES.items():
+        words = command.split()
+        assert words[0] == "python" and minutes > 0, name
+        source = (ROOT / words[1]).read_text(encoding="utf-8")
+        unknown = [w for w in words if w.startswith("--") and f'"{w}"' not in source]
+        assert not unknown, f"{name}: {words[1]} has no option {unknown}"
+
+
+def test_remeasure_runs_the_stale_results_and_stops_at_a_failure(monkeypatch):
+    import subprocess as sp
+
+    _, remeasure = _remeasure()
+    rows = [("a/forward.json", {}, "current"), ("b/coverage.json", {}, "stale: src changed")]
+    rows.append(("b/ci_time.json", {}, "stale: src changed"))  # by hand: never run
+    assert remeasure.chosen(rows, every=False, only=[]) == ["coverage.json"]
+    assert remeasure.chosen(rows, every=True, only=[]) == ["forward.json", "coverage.json"]
+    with pytest.raises(ValueError, match=r"ci_time\.json"):
+        remeasure.chosen(rows, every=False, only=["ci_time.json"])
+    ran = []
+
+    def fake_run(command, **kwargs):  # records; "broken" fails, the rest succeed
+        ran.append(command)
+        status = 3 if command == "broken {commit}".format(commit="abc") else 0
+        return sp.CompletedProcess(command, status, stdout="abc\n")
+
+    monkeypatch.setattr(remeasure.subprocess, "run", fake_run)
+    monkeypatch.setattr(remeasure, "git", lambda *a: fake_run(["git", *a]))
+    monkeypatch.setattr(
+        remeasure, "RECIPES", {"broken": ("broken {commit}", 1), "fine": ("fine", 1)}
+    )
+    assert remeasure.run(["broken", "fine"]) == 3
+    assert ran[-1] == "broken abc"  # HEAD's hash in place of {commit}; stopped there
+    ran.clear()
+    assert remeasure.run(["fine"]) == 0
+    assert ran[1] == "fine" and ran[-1][-1] == "benchmarks/readme_table.py"  # then the tables
