@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import atexit
 import json
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import jax
@@ -11,6 +14,7 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 import rattlefit as rf
+from rattlefit.compile_cache import CACHE_ENV
 from rattlefit.testing.shared import recordings_dir
 
 # pytest-xdist already runs one worker per core: keep each worker on one JAX device (starting
@@ -18,11 +22,18 @@ from rattlefit.testing.shared import recordings_dir
 # thread (two workers each spinning two BLAS threads on two cores run numpy's matrix products
 # several times slower). numpy is loaded before this file, so the environment variable would
 # come too late: threadpoolctl sets the loaded library.
+# One compilation cache for the whole session, in a temporary directory that the main process
+# makes before the workers start (they, and every CLI, notebook and campaign process a test
+# starts, inherit it) and removes at its exit: the same programs are compiled once, not once
+# per process, and the user's cache under the home directory is left alone. A cache entry is
+# the program a fresh compilation gives, so no result depends on it (tests/test_compile_cache.py).
+if CACHE_ENV not in os.environ:
+    os.environ[CACHE_ENV] = tempfile.mkdtemp(prefix="rattlefit-test-cache-")
+    atexit.register(shutil.rmtree, os.environ[CACHE_ENV], ignore_errors=True)
 rf.configure(cpu_cores=1)
+rf.use_compilation_cache()  # $RATTLEFIT_CACHE_DIR, or none when it is "off"
 jax.devices()
 threadpool_limits(limits=1, user_api="blas")
-# the CLI keeps compiled programs in a cache under the home directory; tests leave it alone
-os.environ.setdefault("RATTLEFIT_CACHE_DIR", "off")
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The independent simulator's recordings (../shared/recordings, else the repository's copy).

@@ -2,10 +2,11 @@
 
 Each ``notebooks/*.ipynb`` is executed in memory with nbclient (the committed file is never
 written) in a kernel of the interpreter running the tests, with ``RATTLEFIT_NOTEBOOK_QUICK=1``
-(the notebooks' parameter cells then choose short settings), ``RATTLEFIT_CACHE_DIR=off`` and
-the notebooks folder as working directory. The notebooks' own assert cells hold their
-results against the paper and against the recordings' truth, so a notebook whose numbers drift
-fails here with the failing cell's error.
+(the notebooks' parameter cells then choose short settings), the session's compilation cache
+(``RATTLEFIT_CACHE_DIR``, tests/conftest.py) and the notebooks folder as working directory.
+The notebooks' own assert cells hold their results against the paper and against the
+recordings' truth, so a notebook whose numbers drift fails here with the failing cell's
+error.
 """
 
 from __future__ import annotations
@@ -30,12 +31,11 @@ KERNEL = "python3"
 
 
 def kernel_env() -> dict[str, str]:
-    """The kernel's environment: this one, the notebooks' quick switch, no compilation cache,
-    one BLAS thread, and the rattlefit the tests import first on the path (a checkout's
-    ``src`` or the installed package's folder)."""
+    """The kernel's environment: this one (the session's compilation cache included), the
+    notebooks' quick switch, one BLAS thread, and the rattlefit the tests import first on the
+    path (a checkout's ``src`` or the installed package's folder)."""
     env = dict(os.environ)
     env["RATTLEFIT_NOTEBOOK_QUICK"] = "1"
-    env["RATTLEFIT_CACHE_DIR"] = "off"
     env["OPENBLAS_NUM_THREADS"] = "1"  # one BLAS thread beside the other pytest-xdist worker
     package_root = str(Path(rattlefit.__file__).resolve().parents[1])
     env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH", "")) if p)
