@@ -331,7 +331,7 @@ def diagnose_stage(options: CampaignOptions, result, recordings) -> dict:
     from ..physics.effects import EFFECTS
     from ..report.wording import diagnosis_document
 
-    synthetic = options.fit.likelihood.method == "synthetic"
+    synthetic = options.fit.likelihood == "synthetic"
     fit = options.fit if synthetic else options.fit.replace(likelihood="synthetic")
     diag_options = DiagnoseOptions(effects=options.effects or tuple(EFFECTS), fit=fit)
     baseline = result if synthetic and result is not None else None
