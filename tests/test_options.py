@@ -84,7 +84,7 @@ def test_out_of_range_values_are_refused_with_the_options_name(option, value):
         FitOptions(**{option: value})
 
 
-# -- the experimental group ------------------------------------------------------------------
+# -- the alternatives no default uses ---------------------------------------------------------
 
 
 def _stand_in_problem(n_params: int = 3):

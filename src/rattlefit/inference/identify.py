@@ -238,9 +238,7 @@ def identify(
     starts = np.concatenate([lubrication_starts(recordings, problem, options, say), starts])
     refined = refine_starts(problem, starts, options, rng, say)
     # the covariance uses more realisations than the search, released from fresh states
-    y0 = release_states(
-        refined.problem, refined.optimum, options.n_covariance_realisations, rng
-    )
+    y0 = release_states(refined.problem, refined.optimum, options.n_covariance_realisations, rng)
     unc = uncertainty(refined, y0, options, rng, say)
     groups = {}
     if options.profile_group:
