@@ -90,6 +90,8 @@ FORBIDDEN = {
                      "rattlefit.diagnosis", "rattlefit.report", "rattlefit.likelihood"),
     "rattlefit.report": ("rattlefit.simulation",),
     "rattlefit.diagnosis": ("rattlefit.report",),
+    "rattlefit.rig": ("rattlefit.simulation", "rattlefit.inference", "rattlefit.diagnosis",
+                      "rattlefit.report", "rattlefit.likelihood", "rattlefit.campaign"),
 }  # fmt: skip
 
 

@@ -106,8 +106,8 @@ def describe(rec, path: str, sha: str) -> dict:
     centre distance (mm), lubrication, oil temperature (°C), speed setting (mean speed
     rad/s, fluctuation % of it, frequency Hz), duration (s), measured IGR (rad·Hz) and, for a
     synthetic recording, its truth (SI)."""
-    from ..inference.rig import setup
     from ..io.recording import read_truth
+    from ..rig import setup
 
     op, gp = rec.operating, rec.gear_pair
     truth = read_truth(path) or {}
@@ -166,7 +166,7 @@ def resimulated_igr(result, recordings, options: FitOptions, n: int) -> list[lis
     import jax.numpy as jnp
 
     from ..features.spectra import rattle_index
-    from ..inference.rig import setup
+    from ..rig import setup
     from ..simulation.solve import (
         absolute_tolerances,
         broadcast_params,

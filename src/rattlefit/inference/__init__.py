@@ -1,7 +1,6 @@
 """Inference: from recordings to parameters with honest uncertainty.
 
 - :mod:`.parameters`: the fitted parameters, their coordinates and priors;
-- :mod:`.rig`: a recording turned into the model's inputs;
 - :mod:`.options`: :class:`FitOptions`;
 - :mod:`.problem`: the problem and its seeded realisations; :mod:`.forward`: the feature map;
 - :mod:`.noise`: the noise model (a synthetic likelihood from the simulated ensemble);

@@ -19,9 +19,9 @@ from ..features.orders import (
 from ..features.spectra import welch_psd
 from ..inference.posterior import Posterior
 from ..inference.result import FitResult
-from ..inference.rig import setup
 from ..io.recording import Recording
 from ..quantities import axis_label, display
+from ..rig import setup
 from ..util import atomic_write
 
 
