@@ -42,7 +42,7 @@ steady = time.perf_counter() - t0
 counts = np.asarray(rec.secondary)
 # the fit's workload: 16 members in one lockstep batch (rtol 1e-6, as the fit simulates)
 import jax.numpy as jnp
-from rattlefit.inference import rig
+from rattlefit import rig
 from rattlefit.simulation.solve import broadcast_params, simulate_batch
 s = rig.setup(rec)
 c = s.geometry.backlash / 2

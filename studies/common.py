@@ -12,7 +12,7 @@ import sys
 import time
 from pathlib import Path
 
-from rattlefit.inference.options import FLAT_FIELDS
+from rattlefit.inference.options import OPTION_NAMES
 from rattlefit.inference.parameters import default_specs
 from rattlefit.testing.results import head_commit, provenance, write_result
 
@@ -43,9 +43,9 @@ def add_set_argument(ap: argparse.ArgumentParser) -> None:
 
 def set_overrides(ap: argparse.ArgumentParser, items: list[str]) -> dict:
     """The ``FitOptions`` options named by ``--set`` items (flat names,
-    :data:`~rattlefit.inference.options.FLAT_FIELDS`), their values read as JSON; a bad item
+    :data:`~rattlefit.inference.options.OPTION_NAMES`), their values read as JSON; a bad item
     ends the script through ``ap.error``."""
-    fields = set(FLAT_FIELDS) - {"priors"}
+    fields = set(OPTION_NAMES) - {"priors"}
     overrides = {}
     for item in items:
         name, sep, value = item.partition("=")

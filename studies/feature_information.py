@@ -31,9 +31,9 @@ import rattlefit as rf
 from rattlefit.features.ensemble import shrunk_correlation
 from rattlefit.features.folded import PHASE_BINS
 from rattlefit.features.spectra import BandSpec, spectral_features
-from rattlefit.inference.rig import setup
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.reproducibility import platform_info
+from rattlefit.rig import setup
 
 #: (name, pair, centre distance mm, lubrication, fluctuation %, frequency Hz, a m, viscosity)
 REGIMES = (

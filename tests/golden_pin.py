@@ -128,8 +128,7 @@ def compute_pipelines() -> dict:
 def compute_stable() -> dict:
     """The outputs pinned within rounding, keyed ``<kind>/<name>`` (kinds: the keys of
     :data:`TOLERANCES`), each a list of floats."""
-    from rattlefit import FitOptions, RattleParams, read_recording, simulate, simulate_batch
-    from rattlefit.inference import rig
+    from rattlefit import FitOptions, RattleParams, read_recording, rig, simulate, simulate_batch
     from rattlefit.inference.problem import problem_from
     from rattlefit.simulation.solve import broadcast_params
 

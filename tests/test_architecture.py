@@ -82,12 +82,16 @@ def test_no_module_imports_itself_through_others():
     assert cycle is None, " → ".join(cycle)
 
 
-#: Which layers a package may not import: recordings are read without any analysis, and the
-#: report only draws (what it shows is computed by the layers below it).
+#: Which layers a package may not import: recordings are read without any analysis, the
+#: report only draws (what it shows is computed by the layers below it), and a diagnosis
+#: decides without wording (its words are the report's).
 FORBIDDEN = {
     "rattlefit.io": ("rattlefit.features", "rattlefit.simulation", "rattlefit.inference",
                      "rattlefit.diagnosis", "rattlefit.report", "rattlefit.likelihood"),
     "rattlefit.report": ("rattlefit.simulation",),
+    "rattlefit.diagnosis": ("rattlefit.report",),
+    "rattlefit.rig": ("rattlefit.simulation", "rattlefit.inference", "rattlefit.diagnosis",
+                      "rattlefit.report", "rattlefit.likelihood", "rattlefit.campaign"),
 }  # fmt: skip
 
 
@@ -99,4 +103,21 @@ def test_layers_import_only_downwards():
             if name == layer or name.startswith(layer + "."):
                 hits = [m for m in imports_of(name, path, modules) if m.startswith(banned)]
                 wrong += [f"{name} imports {m}" for m in hits]
+    assert not wrong, "\n".join(wrong)
+
+
+#: Calls that simulate: the report is handed what they give, never calls them.
+SIMULATING = {"simulate", "simulate_batch", "synthesize", "predictive_features",
+              "fitted_realisations", "evaluate"}  # fmt: skip
+
+
+def test_the_report_simulates_nothing():
+    wrong = []
+    for path in sorted((SRC / "rattlefit" / "report").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call):
+                f = node.func
+                name = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", "")
+                if name in SIMULATING:
+                    wrong.append(f"{path.name}:{node.lineno} calls {name}")
     assert not wrong, "\n".join(wrong)

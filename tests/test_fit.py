@@ -639,7 +639,7 @@ def test_starts_can_be_ranked_by_their_realisation_nearest_the_recording(mild_re
     # Two starts screened with two realisations each. Start 0 has one realisation on the
     # recording and one in another regime far from it; start 1 has both a little off it.
     # Their means rank start 1 first; ranked by the realisation nearest the recording
-    # (ExperimentalOptions.start_screen "nearest"), start 0 is the one whose neighbourhood can
+    # (FitOptions.screen "nearest"), start 0 is the one whose neighbourhood can
     # reproduce the recording, and ranks first.
     problem = _problem([mild_recording[0]])
     data = np.asarray(problem.data)

@@ -35,8 +35,7 @@ def test_stable_outputs_match_the_pin_within_rounding():
 def test_the_stable_tolerances_catch_a_change_of_the_model():
     # a tolerance so loose that a real change passes would make the pin useless: 1 % more
     # drag torque must move the motion beyond it
-    from rattlefit import RattleParams, read_recording, simulate
-    from rattlefit.inference import rig
+    from rattlefit import RattleParams, read_recording, rig, simulate
 
     s = rig.setup(read_recording(golden_pin.DATA / golden_pin.FILES[0]))
     runs = [

@@ -11,9 +11,9 @@ import pytest
 
 import rattlefit as rf
 from rattlefit.features.spectra import spectral_features
-from rattlefit.inference.rig import setup
 from rattlefit.io.recording import read_recording
 from rattlefit.physics.model import DEFAULT_MIN_FILM
+from rattlefit.rig import setup
 from rattlefit.simulation.solve import broadcast_params, quantised_relative_motion
 
 NAME = "pairII_boundary_65.0_10pct_8Hz"

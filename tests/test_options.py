@@ -1,5 +1,5 @@
-"""FitOptions: groups, the flat constructor that result JSON and chain files rely on, the
-validation of every option where it is set, and the experimental group's code paths."""
+"""FitOptions: one flat frozen form that result JSON and chain files rely on, the validation
+of every option where it is set, and the code paths of the alternatives no default uses."""
 
 from __future__ import annotations
 
@@ -12,13 +12,7 @@ import numpy as np
 import pytest
 
 import rattlefit as rf
-from rattlefit.inference.options import (
-    FLAT_FIELDS,
-    EnsembleOptions,
-    ExperimentalOptions,
-    FitOptions,
-    ProfileOptions,
-)
+from rattlefit.inference.options import OPTION_NAMES, FitOptions
 from rattlefit.inference.parameters import nuisance_prior
 from rattlefit.inference.profile import stage as stage_module
 
@@ -26,35 +20,27 @@ from rattlefit.inference.profile import stage as stage_module
 identify_module = importlib.import_module("rattlefit.inference.identify")
 
 
-def test_flat_keywords_land_in_their_groups_and_read_back_flat():
+def test_options_are_one_flat_frozen_form():
     options = FitOptions(n_realisations=3, profile_rounds=0, screen="nearest", seed=7)
-    assert options.ensemble.n_realisations == 3 and options.n_realisations == 3
-    assert options.profile.rounds == 0 and options.profile_rounds == 0
-    assert options.experimental.start_screen == "nearest" and options.screen == "nearest"
-    assert options.seed == 7
-    grouped = FitOptions(
-        ensemble=EnsembleOptions(n_realisations=3),
-        profile=ProfileOptions(rounds=0),
-        experimental=ExperimentalOptions(start_screen="nearest"),
-        seed=7,
-    )
-    assert grouped == options
-
-
-def test_a_flat_keyword_overrides_the_same_field_of_a_group_given_with_it():
-    options = FitOptions(ensemble=EnsembleOptions(n_realisations=3, dither=0.2), dither=0.05)
-    assert options.ensemble.n_realisations == 3 and options.ensemble.dither == 0.05
+    assert options.n_realisations == 3 and options.profile_rounds == 0 and options.seed == 7
+    assert not hasattr(options, "ensemble") and not hasattr(options, "profile")
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        options.seed = 8  # type: ignore[misc]
+    # a replacement is checked like a construction
+    with pytest.raises(rf.RattlefitError, match=r"FitOptions\.n_realisations"):
+        options.replace(n_realisations=1)
+    with pytest.raises(rf.RattlefitError, match="unknown option"):
+        options.replace(n_realization=3)
 
 
 def test_to_dict_is_flat_in_the_stored_order_and_from_dict_inverts_it():
     spec = nuisance_prior("min_film", 2e-6, 0.1)
     options = FitOptions.quick(seed=3, priors={"min_film": spec})
     doc = options.to_dict()
-    assert list(doc) == list(FLAT_FIELDS)
+    assert list(doc) == list(OPTION_NAMES)
     assert doc["n_realisations"] == 3 and doc["priors"]["min_film"]["log_sd"] == 0.1
     again = FitOptions.from_dict(json.loads(json.dumps(doc)))
     assert again == options
-    # dataclasses.replace keeps working with flat names, as with the flat dataclass it was
     assert dataclasses.replace(options, n_realisations=5).n_realisations == 5
     assert options.replace(seed=4).seed == 4
 
@@ -74,8 +60,10 @@ def test_every_string_option_is_checked_where_it_is_set(option, value):
 
 
 def test_an_unknown_option_is_named():
-    with pytest.raises(rf.RattlefitError, match="unknown option 'n_realization'"):
+    with pytest.raises(TypeError, match="n_realization"):
         FitOptions(n_realization=3)
+    with pytest.raises(rf.RattlefitError, match=r"unknown option.*'n_realization'"):
+        FitOptions.from_dict({"n_realization": 3})
 
 
 @pytest.mark.parametrize(
@@ -96,7 +84,7 @@ def test_out_of_range_values_are_refused_with_the_options_name(option, value):
         FitOptions(**{option: value})
 
 
-# -- the experimental group ------------------------------------------------------------------
+# -- the alternatives no default uses ---------------------------------------------------------
 
 
 def _stand_in_problem(n_params: int = 3):

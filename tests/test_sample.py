@@ -292,7 +292,7 @@ def test_predictive_plot_draws_from_the_kept_chain(tmp_path, small_recording):
     draws, data, centres = post.predictive_features([small_recording], n_draws=3)
     assert draws.shape == (3, 1, len(centres)) and data.shape == (1, len(centres))
     assert np.sqrt(np.mean((draws - data) ** 2)) < PREDICTIVE_RMS
-    paths = plot_posterior(post, tmp_path, [small_recording])
+    paths = plot_posterior(post, tmp_path, [small_recording], predictive=(draws, data, centres))
     assert any(p.name.startswith("posterior_predictive_0_") for p in paths)
     assert all(p.stat().st_size > 0 for p in paths)
 

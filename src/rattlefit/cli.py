@@ -592,7 +592,9 @@ def sample(
         post.to_json(),
         output,
         plot_dir,
-        lambda d: plot_posterior(post, d, recordings),
+        lambda d: plot_posterior(
+            post, d, recordings, predictive=post.predictive_features(recordings)
+        ),
     )
     beside = backend if backend is not None else output
     idata = None

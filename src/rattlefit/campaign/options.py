@@ -70,7 +70,7 @@ class CampaignOptions:
     @property
     def learned(self) -> bool:
         """Whether the fits use the learned likelihood (one learning per test point)."""
-        return self.fit.likelihood.method == "learned"
+        return self.fit.likelihood == "learned"
 
 
 @dataclasses.dataclass(frozen=True)

@@ -106,8 +106,8 @@ def describe(rec, path: str, sha: str) -> dict:
     centre distance (mm), lubrication, oil temperature (°C), speed setting (mean speed
     rad/s, fluctuation % of it, frequency Hz), duration (s), measured IGR (rad·Hz) and, for a
     synthetic recording, its truth (SI)."""
-    from ..inference.rig import setup
     from ..io.recording import read_truth
+    from ..rig import setup
 
     op, gp = rec.operating, rec.gear_pair
     truth = read_truth(path) or {}
@@ -166,7 +166,7 @@ def resimulated_igr(result, recordings, options: FitOptions, n: int) -> list[lis
     import jax.numpy as jnp
 
     from ..features.spectra import rattle_index
-    from ..inference.rig import setup
+    from ..rig import setup
     from ..simulation.solve import (
         absolute_tolerances,
         broadcast_params,
@@ -331,7 +331,7 @@ def diagnose_stage(options: CampaignOptions, result, recordings) -> dict:
     from ..physics.effects import EFFECTS
     from ..report.wording import diagnosis_document
 
-    synthetic = options.fit.likelihood.method == "synthetic"
+    synthetic = options.fit.likelihood == "synthetic"
     fit = options.fit if synthetic else options.fit.replace(likelihood="synthetic")
     diag_options = DiagnoseOptions(effects=options.effects or tuple(EFFECTS), fit=fit)
     baseline = result if synthetic and result is not None else None

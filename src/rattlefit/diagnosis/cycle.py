@@ -20,7 +20,7 @@ import numpy as np
 from scipy import stats
 
 from ..features.folded import PHASE_BINS, STATISTICS
-from ..inference.rig import RigSetup
+from ..rig import RigSetup
 from .cycle_gap import CycleGap
 from .trial import Trial, fresh_features
 

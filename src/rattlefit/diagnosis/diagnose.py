@@ -67,10 +67,10 @@ from ..inference.options import FitOptions
 from ..inference.parameters import Z_END
 from ..inference.problem import release_states
 from ..inference.result import FitResult
-from ..inference.rig import setup
 from ..io.recording import Recording
 from ..physics.effects import EFFECTS, effect_class
 from ..reproducibility import platform_info
+from ..rig import setup
 from ..util import stamped
 from .cycle import cycle_gap
 from .evidence import ENCODER_VISIBLE, FOUND_ONLY, candidate_static, findings

@@ -1,8 +1,7 @@
 """Inference: from recordings to parameters with honest uncertainty.
 
 - :mod:`.parameters`: the fitted parameters, their coordinates and priors;
-- :mod:`.rig`: a recording turned into the model's inputs;
-- :mod:`.options`: :class:`FitOptions`, in groups;
+- :mod:`.options`: :class:`FitOptions`;
 - :mod:`.problem`: the problem and its seeded realisations; :mod:`.forward`: the feature map;
 - :mod:`.noise`: the noise model (a synthetic likelihood from the simulated ensemble);
 - :mod:`.starts` and :mod:`.least_squares`: the search (Levenberg–Marquardt from many starts);
@@ -13,31 +12,17 @@
 
 from .identify import identify
 from .noise import NoiseModel
-from .options import (
-    EnsembleOptions,
-    ExperimentalOptions,
-    FitOptions,
-    LikelihoodOptions,
-    NoiseOptions,
-    ProfileOptions,
-    SearchOptions,
-)
+from .options import FitOptions
 from .posterior import Posterior, SampleOptions, sample
 from .result import FitResult, ParameterEstimate
 
 __all__ = [
-    "EnsembleOptions",
-    "ExperimentalOptions",
     "FitOptions",
     "FitResult",
-    "LikelihoodOptions",
     "NoiseModel",
-    "NoiseOptions",
     "ParameterEstimate",
     "Posterior",
-    "ProfileOptions",
     "SampleOptions",
-    "SearchOptions",
     "identify",
     "sample",
 ]

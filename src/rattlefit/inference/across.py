@@ -120,7 +120,7 @@ def lubrication_starts(
             sub_problem,
             options.n_starts,
             rng,
-            nuisance_starts=options.experimental.nuisance_starts,
+            nuisance_starts=options.nuisance_starts,
         )
         refined = refine_starts(sub_problem, starts, sub_options, rng, lambda m: say("  " + m))
         optima[film] = (refined.problem, refined.optimum)

@@ -87,12 +87,9 @@ def recording_information(
     """The Fisher information (P, P) of one recording like ``recording`` at the parameter
     ``values`` (by the names of :func:`parameter_names`, the film as ``a``), and the names of
     its P parameters; per unit log of each."""
-    ensemble = dataclasses.replace(
-        options.ensemble,
-        regime="common",
-        n_covariance_realisations=max(n, options.n_covariance_realisations),
+    opts = options.replace(
+        regime="common", n_covariance_realisations=max(n, options.n_covariance_realisations)
     )
-    opts = dataclasses.replace(options, ensemble=ensemble)
     problem, _ = build_problem([recording], opts, rng)
     names = parameter_names(problem)
     index = {s.name: i for i, s in enumerate(problem.specs)}

@@ -148,7 +148,7 @@ def residuals(problem: Problem, zs, mean=None) -> np.ndarray:
 
 def screen_features(problem: Problem, features, screen: str = "mean") -> np.ndarray:
     """The features (K, R, B) by which starting points are ranked, from their few screening
-    realisations ``features`` (K, R, k, B) (``ExperimentalOptions.start_screen``).
+    realisations ``features`` (K, R, k, B) (``FitOptions.screen``).
 
     "mean": their mean in the regime kept (:meth:`Problem.mean_of`). "nearest": each
     start's realisation nearest the recording (in the band weights), recording by recording:

@@ -75,10 +75,10 @@ def uncertainty(refined: Refined, y0, options: FitOptions, rng, say) -> Uncertai
     """The Laplace and profile stages at the search's optimum; with
     ``recentre_rounds`` they start again from a profile point clearly below it."""
     problem, z = refined.problem, refined.optimum
-    valley = film_valley(problem) if options.profile.valley else None
+    valley = film_valley(problem) if options.profile_valley else None
     dof = degrees_of_freedom(problem)
     dof_rec = dof / problem.n_rec  # each recording's share
-    rounds = options.experimental.recentre_rounds
+    rounds = options.recentre_rounds
     recentred = 0
     for recentre in range(rounds + 1):
         say("re-estimating the spread at the optimum and the Laplace covariance …")
@@ -120,7 +120,7 @@ def interval_ends(unc: Uncertainty, options: FitOptions) -> tuple[np.ndarray, np
     z_lo, z_hi = np.array(stage.z_lo), np.array(stage.z_hi)
     for i, prof in stage.profiles.items():
         z_lo[i], z_hi[i] = profile_interval(prof, stage.threshold)[0]
-    if options.profile.continuation:
+    if options.profile_continuation:
         span_profile_points(stage.profiles, stage.threshold, z_lo, z_hi, unc.laplace.problem.specs)
     return z_lo, z_hi
 
@@ -221,7 +221,7 @@ def identify(
     recordings cannot be fitted jointly or an option names a parameter the fit does not have.
     """
     options = options or FitOptions()
-    if options.likelihood.method == "learned":
+    if options.likelihood == "learned":
         return identify_learned(recordings, options, progress=progress)
     t_start = time.perf_counter()
     say = stamped(progress, t_start)  # progress, stamped with the time since the start
@@ -232,18 +232,16 @@ def identify(
         f"{options.n_realisations} realisations per evaluation (seed {options.seed})"
     )
     starts = starting_points(
-        problem, options.n_starts, rng, nuisance_starts=options.experimental.nuisance_starts
+        problem, options.n_starts, rng, nuisance_starts=options.nuisance_starts
     )
     # a fit across lubrications also starts where each lubrication's own search ends
     starts = np.concatenate([lubrication_starts(recordings, problem, options, say), starts])
     refined = refine_starts(problem, starts, options, rng, say)
     # the covariance uses more realisations than the search, released from fresh states
-    y0 = release_states(
-        refined.problem, refined.optimum, options.ensemble.n_covariance_realisations, rng
-    )
+    y0 = release_states(refined.problem, refined.optimum, options.n_covariance_realisations, rng)
     unc = uncertainty(refined, y0, options, rng, say)
     groups = {}
-    if options.profile.group:
+    if options.profile_group:
         groups = group_estimates(
             unc.laplace,
             unc.z,

@@ -38,9 +38,12 @@ LEARNED_STARTS = 8
 
 
 def learning_options(options: FitOptions) -> LearningOptions:
-    """The learning budget of ``options.likelihood``."""
-    lk = options.likelihood
-    return LearningOptions(initial=lk.initial, rounds=lk.rounds, per_round=lk.per_round)
+    """The learned likelihood's learning budget of ``options``."""
+    return LearningOptions(
+        initial=options.learning_initial,
+        rounds=options.learning_rounds,
+        per_round=options.learning_per_round,
+    )
 
 
 def checked_points(problem: Problem, fit: LearnedFit) -> dict[str, np.ndarray]:
@@ -160,30 +163,30 @@ def learned_result(
 
 
 def band_floor(problem: Problem, options: FitOptions) -> np.ndarray:
-    """The learned likelihood's variance floor (F,): ``NoiseOptions.sigma_floor`` squared on
+    """The learned likelihood's variance floor (F,): ``FitOptions.sigma_floor`` squared on
     each band, as the synthetic likelihood floors a band's spread (where rattle locks into a
     periodic orbit the simulator's own spread vanishes, and a recording from another rig or
     simulator differs from the model by more); nothing on the drive-cycle statistics."""
     floor = np.zeros(problem.data.shape[-1])
-    floor[: problem.n_bands] = options.noise.sigma_floor**2
+    floor[: problem.n_bands] = options.sigma_floor**2
     return floor
 
 
 def learn_or_reuse(problem: Problem, options: FitOptions, seed, say) -> tuple[Learned, dict]:
-    """The learned likelihood of ``problem``: read from ``options.likelihood.reuse`` when
+    """The learned likelihood of ``problem``: read from ``options.reuse_likelihood`` when
     given, else learned in rounds; and what it cost (simulations, rounds)."""
-    lk = options.likelihood
+    reuse = options.reuse_likelihood
     learning = learning_options(options)
     floor = band_floor(problem, options)
-    if lk.reuse is not None:
-        stored = read_learned(lk.reuse, problem)
+    if reuse is not None:
+        stored = read_learned(reuse, problem)
         if not all(np.allclose(d.floor, floor) for d in stored.likelihood.densities):
             raise RattlefitError(
-                f"{lk.reuse}: /learned_likelihood: learned with another variance floor than "
-                "this fit's (noise.sigma_floor); learn anew"
+                f"{reuse}: /learned_likelihood: learned with another variance floor than "
+                "this fit's (sigma_floor); learn anew"
             )
-        say(f"reusing the learned likelihood of this test point in {lk.reuse}")
-        return stored, {"reused": str(lk.reuse), "rounds": []}
+        say(f"reusing the learned likelihood of this test point in {reuse}")
+        return stored, {"reused": str(reuse), "rounds": []}
     say(f"learning the likelihood from {learning.budget} simulations per recording")
     like, design, rounds = learn_likelihood(problem, learning, seed=seed, floor=floor, progress=say)
     learned = Learned(like, design, test_point_key(problem), options.seed, learning.density)
@@ -207,7 +210,7 @@ def fit_and_check(problem: Problem, learned: Learned, options: FitOptions, seed,
     starts = best_points(like, learned.design.u, LEARNED_STARTS)
     fit = fit_learned(like, starts, range(len(problem.specs)))
     say(f"χ² = {fit.chi2:.1f} on {fit.dof} dof (p = {fit.p_value:.2g})")
-    n = options.likelihood.check_realisations
+    n = options.check_realisations
     say(f"checking the learned likelihood against {n} fresh simulations per point …")
     checks = check_points(problem, like, checked_points(problem, fit), n, seed)
     failed = [c.label for c in checks if not c.passed]
@@ -249,18 +252,18 @@ def identify_learned(
     docstring). Every random draw descends from ``options.seed``. Where the check fails at the
     optimum or an interval end, the likelihood (learned here or reused) gets one more round of
     simulations drawn from its posterior and the fit is repeated, up to
-    ``options.likelihood.refinements`` times."""
+    ``options.learning_refinements`` times."""
     t_start = time.perf_counter()
     say = stamped(progress, t_start)
     platform = platform_info()
     problem, rigs, _ = problem_from(recordings, options)
     say(f"{len(rigs)} recording(s), {len(problem.specs)} parameters (seed {options.seed})")
     s_learn, s_check, s_more = np.random.SeedSequence(options.seed).spawn(3)
-    s_more = iter(s_more.spawn(options.likelihood.refinements))
+    s_more = iter(s_more.spawn(options.learning_refinements))
     learned, info = learn_or_reuse(problem, options, s_learn, say)
     fit, checks = fit_and_check(problem, learned, options, s_check, say)
     lubrications = [r.recording.operating.lubrication for r in rigs]
-    for _ in range(options.likelihood.refinements):
+    for _ in range(options.learning_refinements):
         if all(c.passed for c in checks):
             break
         say("one more round of simulations where the learned likelihood misses …")
@@ -277,7 +280,7 @@ def identify_learned(
         "check_passed": all(c.passed for c in checks),
     }
     groups = ({}, {})
-    if options.profile.group:
+    if options.profile_group:
         groups = momentum_estimates(problem, learned, fit, lubrications, say)
     wall = time.perf_counter() - t_start
     say(f"done in {wall:.1f} s")

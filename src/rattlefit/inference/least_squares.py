@@ -25,7 +25,7 @@ from .options import FitOptions
 from .problem import Problem
 from .starts import prior_centre
 
-#: Levenberg–Marquardt steps per start and recording when ``SearchOptions.max_iterations`` is
+#: Levenberg–Marquardt steps per start and recording when ``FitOptions.max_iterations`` is
 #: None: each recording adds its own rugged cost.
 LM_STEPS = 8
 #: Consecutive rejected trial steps after which a run stops (:class:`StallingLevenbergMarquardt`):
@@ -157,7 +157,7 @@ def screen_starts(
     Returns the problem with the spread at the best start, each start's cost (inf where not
     re-evaluated) and the indices of the best ``n_refine`` + :data:`SCREEN_EXTRA`, best first.
     """
-    screen = options.experimental.start_screen
+    screen = options.screen
     say("estimating the run-to-run spread of the features …")
     ens = ensemble_features(problem, prior_centre(problem.specs), options.n_noise_realisations, rng)
     sigma = band_sigma(problem, options, ens)
@@ -222,7 +222,7 @@ def refine_starts(problem: Problem, starts, options: FitOptions, rng, say) -> Re
     # so these are the costs a batch of the candidates would give, to the last bit)
     candidates = np.stack([o[0] for o in optima] + [starts[order[0]]])
     k_screen = min(options.start_realisations, options.n_realisations)
-    if k_screen < options.n_realisations or options.experimental.start_screen == "mean":
+    if k_screen < options.n_realisations or options.screen == "mean":
         start_cost = costs[order[0]]  # of all n_realisations, in these weights
     else:
         start_cost = forward.costs(problem, starts[order[:1]])[0]

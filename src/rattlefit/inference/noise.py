@@ -38,7 +38,7 @@ class NoiseModel:
     sigma_dof : degrees of freedom of the spread estimate
         (:func:`~rattlefit.features.ensemble.chaotic_part`).
     regime_share : (R,) the share of the realisations at the optimum that are in the regime
-        each recording is compared with (``EnsembleOptions.regime``); below one half the recording
+        each recording is compared with (``FitOptions.regime``); below one half the recording
         is in a regime rarer than another that the model reaches there.
     """
 

@@ -1,15 +1,12 @@
-"""Options of :func:`~rattlefit.inference.identify.identify`, in groups.
+"""Options of :func:`~rattlefit.inference.identify.identify`: one flat, frozen
+:class:`FitOptions`, checked at construction.
 
-:class:`FitOptions` holds five groups, each a frozen dataclass checked at construction:
-:class:`EnsembleOptions` (how each evaluation simulates and averages realisations),
-:class:`NoiseOptions` (the band weights), :class:`SearchOptions` (starts and
-Levenberg–Marquardt), :class:`ProfileOptions` (the profile intervals) and
-:class:`ExperimentalOptions` (alternatives that no default uses), plus ``seed`` and ``priors``.
-
-The flat constructor keeps working: ``FitOptions(n_realisations=3, profile_rounds=0)`` routes
-each keyword to its group (:data:`FLAT_FIELDS`), and every flat name is readable as an
-attribute (``options.n_realisations``). Result JSON and chain files store the options flat
-(:meth:`FitOptions.to_dict`, :meth:`FitOptions.from_dict`).
+Its fields fall into six concerns, each checked by a function of its own: the ensemble (how
+each evaluation simulates and averages realisations), the noise (the band weights), the search
+(starts and Levenberg–Marquardt), the profile intervals, alternatives no default uses, and the
+likelihood (synthetic or learned, and the learned one's budget); plus ``seed`` and ``priors``.
+The same names are the result JSON's and the chain files' (:meth:`FitOptions.to_dict`,
+:meth:`FitOptions.from_dict`) and ``--set FIELD=JSON``'s in the studies.
 """
 
 from __future__ import annotations
@@ -21,27 +18,89 @@ from ..errors import RattlefitError
 from ..quantities import FILM
 from .parameters import ParameterSpec, default_specs
 
+#: The feature sets a fit can compare (``FitOptions.features``).
+FEATURE_SETS = ("bands", "bands+folded")
+#: How a fit's features are compared with the model (``FitOptions.likelihood``).
+LIKELIHOODS = ("synthetic", "learned")
 
-def _check(ok: bool, message: str) -> None:
+
+def check(ok: bool, message: str) -> None:
+    """Raise :class:`~rattlefit.errors.RattlefitError` with ``message`` unless ``ok``."""
     if not ok:
         raise RattlefitError(message)
 
 
-def _check_choice(group: str, name: str, value: Any, allowed: tuple) -> None:
-    _check(
+def check_choice(name: str, value: Any, allowed: tuple) -> None:
+    """Raise unless option ``name``'s ``value`` is one of ``allowed``."""
+    check(
         value in allowed,
-        f"FitOptions.{name} must be one of {', '.join(map(repr, allowed))}, got {value!r}"
-        f" ({group})",
+        f"FitOptions.{name} must be one of {', '.join(map(repr, allowed))}, got {value!r}",
     )
 
 
-#: The feature sets a fit can compare (``EnsembleOptions.features``).
-FEATURE_SETS = ("bands", "bands+folded")
+def check_at_least(options, names, low: int, *, optional: bool = False) -> None:
+    """Raise unless each option of ``names`` is at least ``low`` (or None, if ``optional``)."""
+    for name in names:
+        value = getattr(options, name)
+        ok = (optional and value is None) or (value is not None and value >= low)
+        check(ok, f"FitOptions.{name} must be ≥ {low}{' or None' if optional else ''}, got {value}")
 
 
-@dataclasses.dataclass(frozen=True)
-class EnsembleOptions:
-    """How each evaluation simulates the recordings and averages its realisations.
+def check_ensemble(o: FitOptions) -> None:
+    """The ensemble's options: counts, dither, tolerance, burn-in and the choices."""
+    check_at_least(o, ("n_realisations", "n_noise_realisations", "n_covariance_realisations"), 2)
+    check(o.dither >= 0, f"FitOptions.dither must be ≥ 0, got {o.dither}")
+    check(0 < o.rtol < 1, f"FitOptions.rtol must lie in (0, 1), got {o.rtol}")
+    check(o.burn_in >= 0, f"FitOptions.burn_in must be ≥ 0 s, got {o.burn_in}")
+    check_choice("regime", o.regime, ("recording", "common"))
+    check_choice("drive", o.drive, ("measured", "commanded"))
+    check_choice("quantisation", o.quantisation, ("encoders", "white"))
+    check_choice("features", o.features, FEATURE_SETS)
+
+
+def check_noise(o: FitOptions) -> None:
+    """The band weights: a positive floor, non-negative additions."""
+    check(o.sigma_floor > 0, f"FitOptions.sigma_floor must be > 0, got {o.sigma_floor}")
+    for name in ("floor_uncertainty", "model_discrepancy"):
+        check(getattr(o, name) >= 0, f"FitOptions.{name} must be ≥ 0, got {getattr(o, name)}")
+
+
+def check_search(o: FitOptions) -> None:
+    """The search's starts and steps."""
+    check_at_least(o, ("n_starts", "max_iterations"), 1, optional=True)
+    check_at_least(o, ("start_realisations", "n_refine"), 1)
+
+
+def check_profile(o: FitOptions) -> None:
+    """The profile stage's rounds and screen."""
+    rounds = ("profile_rounds", "profile_bisections", "profile_continuation", "profile_screen")
+    check_at_least(o, rounds, 0)
+    check_at_least(o, ("polish_iterations",), 1)
+
+
+def check_experimental(o: FitOptions) -> None:
+    """The alternatives no default uses."""
+    check_at_least(o, ("nuisance_starts",), 0, optional=True)
+    check_choice("screen", o.screen, ("mean", "nearest"))
+    check_at_least(o, ("roughness_sets",), 1)
+    check_at_least(o, ("recentre_rounds",), 0)
+
+
+def check_likelihood(o: FitOptions) -> None:
+    """The likelihood's method and the learned one's budget."""
+    check_choice("likelihood", o.likelihood, LIKELIHOODS)
+    check_at_least(o, ("learning_initial",), 16)
+    check_at_least(o, ("learning_rounds", "learning_refinements"), 0)
+    check_at_least(o, ("learning_per_round",), 1)
+    check_at_least(o, ("check_realisations",), 2)
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class FitOptions:
+    """Options of :func:`~rattlefit.inference.identify.identify` (all have working defaults).
+    Raises :class:`~rattlefit.errors.RattlefitError` naming the option for any invalid value.
+
+    **The ensemble**: how each evaluation simulates the recordings and averages realisations.
 
     n_realisations : M, seeded realisations averaged per evaluation (released from different
         states in the gap; the same ones at every point: common random numbers). Default 6.
@@ -70,36 +129,8 @@ class EnsembleOptions:
         band PSDs of Δθ*) or ``"bands+folded"`` (those, then the drive-cycle-folded
         statistics of :mod:`rattlefit.features.folded`, each with its ensemble spread and
         correlations like a band). Default ``"bands"``.
-    """
 
-    n_realisations: int = 6
-    n_noise_realisations: int = 8
-    n_covariance_realisations: int = 24
-    dither: float = 0.1
-    regime_threshold: float | None = 9.0
-    regime: str = "recording"
-    rtol: float = 1e-5
-    drive: str = "measured"
-    quantisation: str = "encoders"
-    burn_in: float = 0.5
-    features: str = "bands"
-
-    def __post_init__(self):
-        for name in ("n_realisations", "n_noise_realisations", "n_covariance_realisations"):
-            value = getattr(self, name)
-            _check(value >= 2, f"FitOptions.{name} must be ≥ 2, got {value}")
-        _check(self.dither >= 0, f"FitOptions.dither must be ≥ 0, got {self.dither}")
-        _check(0 < self.rtol < 1, f"FitOptions.rtol must lie in (0, 1), got {self.rtol}")
-        _check(self.burn_in >= 0, f"FitOptions.burn_in must be ≥ 0 s, got {self.burn_in}")
-        _check_choice("ensemble", "regime", self.regime, ("recording", "common"))
-        _check_choice("ensemble", "drive", self.drive, ("measured", "commanded"))
-        _check_choice("ensemble", "quantisation", self.quantisation, ("encoders", "white"))
-        _check_choice("ensemble", "features", self.features, FEATURE_SETS)
-
-
-@dataclasses.dataclass(frozen=True)
-class NoiseOptions:
-    """The band weights: a recording's run-to-run spread and what is added to it (log10).
+    **The noise**: a recording's run-to-run spread and what is added to it (log10).
 
     sigma_floor : lower bound on a band's standard deviation. Default 0.03.
     floor_uncertainty : standard uncertainty of eq. (8)'s analytic quantisation floor, added
@@ -107,21 +138,8 @@ class NoiseOptions:
     model_discrepancy : standard deviation of the difference between this model and the rig
         at the same parameters, added to every band. Default 0 (a poor fit already widens
         the intervals by its reduced χ²).
-    """
 
-    sigma_floor: float = 0.03
-    floor_uncertainty: float = 0.0
-    model_discrepancy: float = 0.0
-
-    def __post_init__(self):
-        _check(self.sigma_floor > 0, f"FitOptions.sigma_floor must be > 0, got {self.sigma_floor}")
-        for name in ("floor_uncertainty", "model_discrepancy"):
-            _check(getattr(self, name) >= 0, f"FitOptions.{name} must be ≥ 0")
-
-
-@dataclasses.dataclass(frozen=True)
-class SearchOptions:
-    """The search for the optimum: seeded starts, then Levenberg–Marquardt from the best.
+    **The search**: seeded starts, then Levenberg–Marquardt from the best.
 
     n_starts : starting points over the film half-lengths and the drag torque (a scrambled
         Sobol' sequence in log over :data:`~rattlefit.inference.starts.START_RANGES`); None:
@@ -131,305 +149,118 @@ class SearchOptions:
     n_refine : how many of the best starts Levenberg–Marquardt refines. Default 3.
     max_iterations : Levenberg–Marquardt steps per start; None:
         :data:`~rattlefit.inference.least_squares.LM_STEPS` per recording.
-    """
 
-    n_starts: int | None = None
-    start_realisations: int = 2
-    n_refine: int = 3
-    max_iterations: int | None = None
+    **The profile intervals** (:mod:`rattlefit.inference.profile`).
 
-    def __post_init__(self):
-        _check(
-            self.n_starts is None or self.n_starts >= 1,
-            f"FitOptions.n_starts must be ≥ 1 or None, got {self.n_starts}",
-        )
-        _check(
-            self.start_realisations >= 1,
-            f"FitOptions.start_realisations must be ≥ 1, got {self.start_realisations}",
-        )
-        _check(self.n_refine >= 1, f"FitOptions.n_refine must be ≥ 1, got {self.n_refine}")
-        _check(
-            self.max_iterations is None or self.max_iterations >= 1,
-            f"FitOptions.max_iterations must be ≥ 1 or None, got {self.max_iterations}",
-        )
-
-
-@dataclasses.dataclass(frozen=True)
-class ProfileOptions:
-    """The profile intervals of the free parameters (:mod:`rattlefit.inference.profile`).
-
-    rounds : rounds of re-optimising the other parameters at the values just outside each
-        interval, each followed by another bisection of the ends. Default 1.
+    profile_rounds : rounds of re-optimising the other parameters at the values just outside
+        each interval, each followed by another bisection of the ends. Default 1.
     polish_iterations : damped Gauss–Newton iterations per re-optimisation. Default 1.
-    bisections : rounds of bisecting each interval end's bracket where it is wide. Default 4.
-    continuation : rounds of following each profile past its ends, the other parameters
-        predicted along the secant and re-optimised; 0 turns it off. Default 4.
-    valley : also guess the other parameters along the film's valley in (a, viscosity), the
-        viscosity that keeps the squeeze coefficient at a few gaps near contact. Default True.
-    roughness : widen the threshold's noise allowance to the cost's measured spread 1–2 %
-        from the optimum, where it exceeds the analytic Monte Carlo allowance. Default True.
-    screen : realisations that cost a profile value first; the rest only where it is not
-        already far above the threshold. 0 simulates all of them. Default 6.
-    group : also profile each boundary film's squeeze-film group, the squeeze film's momentum
-        per approach (:mod:`rattlefit.inference.group`), what a boundary recording pins.
-        Default True.
-    """
+    profile_bisections : rounds of bisecting each interval end's bracket where it is wide.
+        Default 4.
+    profile_continuation : rounds of following each profile past its ends, the other
+        parameters predicted along the secant and re-optimised; 0 turns it off. Default 4.
+    profile_valley : also guess the other parameters along the film's valley in
+        (a, viscosity), the viscosity that keeps the squeeze coefficient at a few gaps near
+        contact. Default True.
+    profile_roughness : widen the threshold's noise allowance to the cost's measured spread
+        1–2 % from the optimum, where it exceeds the analytic Monte Carlo allowance. Default
+        True.
+    profile_screen : realisations that cost a profile value first; the rest only where it is
+        not already far above the threshold. 0 simulates all of them. Default 6.
+    profile_group : also profile each boundary film's squeeze-film group, the squeeze film's
+        momentum per approach (:mod:`rattlefit.inference.group`), what a boundary recording
+        pins. Default True.
 
-    rounds: int = 1
-    polish_iterations: int = 1
-    bisections: int = 4
-    continuation: int = 4
-    valley: bool = True
-    roughness: bool = True
-    screen: int = 6
-    group: bool = True
-
-    def __post_init__(self):
-        for name in ("rounds", "bisections", "continuation", "screen"):
-            _check(
-                getattr(self, name) >= 0,
-                f"FitOptions.profile_{name} must be ≥ 0, got {getattr(self, name)}",
-            )
-        _check(
-            self.polish_iterations >= 1,
-            f"FitOptions.polish_iterations must be ≥ 1, got {self.polish_iterations}",
-        )
-
-
-@dataclasses.dataclass(frozen=True)
-class ExperimentalOptions:
-    """Alternatives that no default uses, kept for studies (``benchmarks/``); each is tested.
+    **Alternatives that no default uses**, kept for studies; each is tested.
 
     nuisance_starts : further starts with every parameter that has a prior spread over its
         median × exp(± one log-sd); None: as many as ``n_starts``. Default 0 (none).
-    start_screen : how a start is ranked from its few realisations: ``"mean"`` (default) or
+    screen : how a start is ranked from its few realisations: ``"mean"`` (default) or
         ``"nearest"`` (its realisation nearest the recording).
     roughness_sets : independent realisation sets that measure the profile roughness; with 2
         or more the allowance is their spread, not one set's rms. Default 1.
     recentre_rounds : times the covariance and profile stages may start again from the
         profiles' lowest point when it lies clearly below the optimum. Default 0.
-    """
 
-    nuisance_starts: int | None = 0
-    start_screen: str = "mean"
-    roughness_sets: int = 1
-    recentre_rounds: int = 0
+    **The likelihood**, and the learned one's simulation budget.
 
-    def __post_init__(self):
-        _check(
-            self.nuisance_starts is None or self.nuisance_starts >= 0,
-            f"FitOptions.nuisance_starts must be ≥ 0 or None, got {self.nuisance_starts}",
-        )
-        _check_choice("experimental", "screen", self.start_screen, ("mean", "nearest"))
-        _check(
-            self.roughness_sets >= 1,
-            f"FitOptions.roughness_sets must be ≥ 1, got {self.roughness_sets}",
-        )
-        _check(
-            self.recentre_rounds >= 0,
-            f"FitOptions.recentre_rounds must be ≥ 0, got {self.recentre_rounds}",
-        )
-
-
-#: How a fit's features are compared with the model (``LikelihoodOptions.method``).
-LIKELIHOODS = ("synthetic", "learned")
-
-
-@dataclasses.dataclass(frozen=True)
-class LikelihoodOptions:
-    """Which likelihood the fit uses, and the learned one's simulation budget.
-
-    method : ``"synthetic"`` (the mean of a few seeded realisations at each point, weighted
-        by the band spread at the optimum: the ensemble, noise, search and profile groups) or
-        ``"learned"`` (the features' distribution learned from simulations over the priors
-        and the posterior, :mod:`rattlefit.likelihood`). Default ``"synthetic"``.
-    initial : simulations per recording of the learned likelihood's space-filling round.
-        Default 1024.
-    rounds : further rounds drawn from the current posterior. Default 3.
-    per_round : simulations per recording in each further round. Default 512.
+    likelihood : ``"synthetic"`` (the mean of a few seeded realisations at each point,
+        weighted by the band spread at the optimum) or ``"learned"`` (the features'
+        distribution learned from simulations over the priors and the posterior,
+        :mod:`rattlefit.likelihood`). Default ``"synthetic"``.
+    learning_initial : simulations per recording of the learned likelihood's space-filling
+        round. Default 1024.
+    learning_rounds : further rounds drawn from the current posterior. Default 3.
+    learning_per_round : simulations per recording in each further round. Default 512.
     check_realisations : simulations at the optimum and at each interval end that check the
         learned likelihood against the simulator. Default 24.
-    refinements : at most this many further rounds, each followed by a new fit and check,
-        while the check fails. Default 2.
-    reuse : a stored learned likelihood of this test point (a file written by
+    learning_refinements : at most this many further rounds, each followed by a new fit and
+        check, while the check fails. Default 2.
+    reuse_likelihood : a stored learned likelihood of this test point (a file written by
         :func:`~rattlefit.likelihood.store.write_learned`, e.g. ``identify -o``'s
         ``*.likelihood.h5``) to start from instead of learning: only where its check against
         the simulator fails are further rounds simulated. Default None.
-    """
 
-    method: str = "synthetic"
-    initial: int = 1024
-    rounds: int = 3
-    per_round: int = 512
-    check_realisations: int = 24
-    refinements: int = 2
-    reuse: str | None = None
+    **The rest.**
 
-    def __post_init__(self):
-        _check_choice("likelihood", "likelihood", self.method, LIKELIHOODS)
-        _check(self.initial >= 16, f"FitOptions.learning_initial must be ≥ 16, got {self.initial}")
-        _check(self.rounds >= 0, f"FitOptions.learning_rounds must be ≥ 0, got {self.rounds}")
-        _check(
-            self.per_round >= 1, f"FitOptions.learning_per_round must be ≥ 1, got {self.per_round}"
-        )
-        _check(
-            self.refinements >= 0,
-            f"FitOptions.learning_refinements must be ≥ 0, got {self.refinements}",
-        )
-        _check(
-            self.check_realisations >= 2,
-            f"FitOptions.check_realisations must be ≥ 2, got {self.check_realisations}",
-        )
-
-
-#: Each flat option name → (group, field), in the order result JSON and chain files use.
-FLAT_FIELDS: dict[str, tuple[str, str]] = {
-    "n_realisations": ("ensemble", "n_realisations"),
-    "n_noise_realisations": ("ensemble", "n_noise_realisations"),
-    "n_covariance_realisations": ("ensemble", "n_covariance_realisations"),
-    "n_starts": ("search", "n_starts"),
-    "start_realisations": ("search", "start_realisations"),
-    "nuisance_starts": ("experimental", "nuisance_starts"),
-    "screen": ("experimental", "start_screen"),
-    "n_refine": ("search", "n_refine"),
-    "max_iterations": ("search", "max_iterations"),
-    "sigma_floor": ("noise", "sigma_floor"),
-    "floor_uncertainty": ("noise", "floor_uncertainty"),
-    "model_discrepancy": ("noise", "model_discrepancy"),
-    "profile_rounds": ("profile", "rounds"),
-    "polish_iterations": ("profile", "polish_iterations"),
-    "profile_bisections": ("profile", "bisections"),
-    "profile_continuation": ("profile", "continuation"),
-    "profile_valley": ("profile", "valley"),
-    "profile_roughness": ("profile", "roughness"),
-    "roughness_sets": ("experimental", "roughness_sets"),
-    "profile_screen": ("profile", "screen"),
-    "profile_group": ("profile", "group"),
-    "recentre_rounds": ("experimental", "recentre_rounds"),
-    "seed": ("", "seed"),
-    "rtol": ("ensemble", "rtol"),
-    "drive": ("ensemble", "drive"),
-    "quantisation": ("ensemble", "quantisation"),
-    "burn_in": ("ensemble", "burn_in"),
-    "dither": ("ensemble", "dither"),
-    "regime_threshold": ("ensemble", "regime_threshold"),
-    "regime": ("ensemble", "regime"),
-    "features": ("ensemble", "features"),
-    "likelihood": ("likelihood", "method"),
-    "learning_initial": ("likelihood", "initial"),
-    "learning_rounds": ("likelihood", "rounds"),
-    "learning_per_round": ("likelihood", "per_round"),
-    "check_realisations": ("likelihood", "check_realisations"),
-    "learning_refinements": ("likelihood", "refinements"),
-    "reuse_likelihood": ("likelihood", "reuse"),
-    "priors": ("", "priors"),
-}
-
-_GROUPS = {
-    "ensemble": EnsembleOptions,
-    "noise": NoiseOptions,
-    "search": SearchOptions,
-    "profile": ProfileOptions,
-    "experimental": ExperimentalOptions,
-    "likelihood": LikelihoodOptions,
-}
-
-#: The :meth:`FitOptions.quick` preset, as flat options.
-QUICK = dict(
-    n_realisations=3,
-    n_noise_realisations=6,
-    n_covariance_realisations=8,
-    n_starts=16,
-    n_refine=1,
-    max_iterations=3,
-    profile_rounds=0,
-    profile_bisections=0,
-    profile_continuation=0,
-    learning_initial=512,
-    learning_rounds=2,
-    learning_per_round=256,
-)
-#: The :meth:`FitOptions.optimum_only` preset, as flat options.
-OPTIMUM_ONLY = dict(
-    profile_group=False,
-    profile_rounds=0,
-    profile_bisections=0,
-    profile_continuation=0,
-    profile_valley=False,
-    profile_roughness=False,
-    recentre_rounds=0,
-)
-
-
-@dataclasses.dataclass(frozen=True, init=False)
-class FitOptions:
-    """Options of :func:`~rattlefit.inference.identify.identify` (all have working defaults).
-
-    ensemble : :class:`EnsembleOptions`, how evaluations simulate and average realisations.
-    noise : :class:`NoiseOptions`, the band weights.
-    search : :class:`SearchOptions`, the starts and Levenberg–Marquardt.
-    profile : :class:`ProfileOptions`, the profile intervals.
-    experimental : :class:`ExperimentalOptions`, alternatives no default uses.
-    likelihood : :class:`LikelihoodOptions`, the synthetic or the learned likelihood; a
-        method's name (``"learned"``) stands for its options with the default budget.
     seed : seeds every random draw of the fit (release states, dither, encoder phases,
         starts); reported in the result. Default 0.
     priors : parameter name → replacement :class:`~rattlefit.inference.parameters.ParameterSpec`
         (e.g. from ``--prior min_film=2e-6:0.1``). Default none.
-
-    Flat keywords (:data:`FLAT_FIELDS`) may be given instead of, or besides, groups; a flat
-    keyword overrides the same field of a group given with it. Raises
-    :class:`~rattlefit.errors.RattlefitError` naming the option for any invalid value.
     """
 
-    ensemble: EnsembleOptions
-    noise: NoiseOptions
-    search: SearchOptions
-    profile: ProfileOptions
-    experimental: ExperimentalOptions
-    likelihood: LikelihoodOptions
-    seed: int
-    priors: dict
+    n_realisations: int = 6
+    n_noise_realisations: int = 8
+    n_covariance_realisations: int = 24
+    n_starts: int | None = None
+    start_realisations: int = 2
+    nuisance_starts: int | None = 0
+    screen: str = "mean"
+    n_refine: int = 3
+    max_iterations: int | None = None
+    sigma_floor: float = 0.03
+    floor_uncertainty: float = 0.0
+    model_discrepancy: float = 0.0
+    profile_rounds: int = 1
+    polish_iterations: int = 1
+    profile_bisections: int = 4
+    profile_continuation: int = 4
+    profile_valley: bool = True
+    profile_roughness: bool = True
+    roughness_sets: int = 1
+    profile_screen: int = 6
+    profile_group: bool = True
+    recentre_rounds: int = 0
+    seed: int = 0
+    rtol: float = 1e-5
+    drive: str = "measured"
+    quantisation: str = "encoders"
+    burn_in: float = 0.5
+    dither: float = 0.1
+    regime_threshold: float | None = 9.0
+    regime: str = "recording"
+    features: str = "bands"
+    likelihood: str = "synthetic"
+    learning_initial: int = 1024
+    learning_rounds: int = 3
+    learning_per_round: int = 512
+    check_realisations: int = 24
+    learning_refinements: int = 2
+    reuse_likelihood: str | None = None
+    priors: dict = dataclasses.field(default_factory=dict)
 
-    def __init__(
-        self,
-        *,
-        ensemble: EnsembleOptions | None = None,
-        noise: NoiseOptions | None = None,
-        search: SearchOptions | None = None,
-        profile: ProfileOptions | None = None,
-        experimental: ExperimentalOptions | None = None,
-        likelihood: LikelihoodOptions | None = None,
-        seed: int = 0,
-        priors: dict | None = None,
-        **flat,
-    ):
-        if isinstance(likelihood, str):  # FitOptions(likelihood="learned"), and to_dict's form
-            likelihood = LikelihoodOptions(method=likelihood)
-        given = dict(
-            ensemble=ensemble,
-            noise=noise,
-            search=search,
-            profile=profile,
-            experimental=experimental,
-            likelihood=likelihood,
-        )
-        updates: dict[str, dict] = {g: {} for g in _GROUPS}
-        for key, value in flat.items():
-            group, field = FLAT_FIELDS.get(key, (None, None))
-            if not group:
-                raise RattlefitError(
-                    f"FitOptions: unknown option {key!r}; expected one of "
-                    f"{', '.join(k for k in FLAT_FIELDS if k not in ('seed', 'priors'))}"
-                )
-            updates[group][field] = value
-        for name, cls in _GROUPS.items():
-            base = given[name] if given[name] is not None else cls()
-            if not isinstance(base, cls):
-                raise RattlefitError(f"FitOptions.{name} must be a {cls.__name__}")
-            object.__setattr__(self, name, dataclasses.replace(base, **updates[name]))
-        object.__setattr__(self, "seed", int(seed))
-        object.__setattr__(self, "priors", dict(priors or {}))
+    def __post_init__(self):
+        object.__setattr__(self, "seed", int(self.seed))
+        object.__setattr__(self, "priors", dict(self.priors or {}))
+        for check_concern in (
+            check_ensemble,
+            check_noise,
+            check_search,
+            check_profile,
+            check_experimental,
+            check_likelihood,
+        ):
+            check_concern(self)
         self._check_priors()
 
     def _check_priors(self) -> None:
@@ -446,17 +277,11 @@ class FitOptions:
                     f"FitOptions.priors[{name!r}]: expected a ParameterSpec named {name!r}"
                 )
 
-    def __getattr__(self, name: str):
-        # only called when normal lookup fails: the flat names
-        group, field = FLAT_FIELDS.get(name, (None, None))
-        if not group:
-            raise AttributeError(f"FitOptions has no option {name!r}")
-        return getattr(object.__getattribute__(self, group), field)
-
     def replace(self, **changes) -> FitOptions:
-        """A copy with ``changes`` (group objects, ``seed``, ``priors`` or flat names)."""
-        current = {name: getattr(self, name) for name in (*_GROUPS, "seed", "priors")}
-        return FitOptions(**{**current, **changes})
+        """A copy with ``changes`` (option name → value), checked again."""
+        unknown = sorted(set(changes) - set(OPTION_NAMES))
+        check(not unknown, f"FitOptions: unknown option(s) {', '.join(map(repr, unknown))}")
+        return dataclasses.replace(self, **changes)
 
     @classmethod
     def quick(cls, **overrides) -> FitOptions:
@@ -472,17 +297,47 @@ class FitOptions:
         return cls(**{**OPTIMUM_ONLY, **overrides})
 
     def to_dict(self) -> dict:
-        """Every option by its flat name (:data:`FLAT_FIELDS`'s order), priors as dicts."""
-        out = {}
-        for key, (group, field) in FLAT_FIELDS.items():
-            value = getattr(self, field) if not group else getattr(getattr(self, group), field)
-            out[key] = value
+        """Every option by its name, in the fields' order, priors as dicts."""
+        out = {name: getattr(self, name) for name in OPTION_NAMES}
         out["priors"] = {k: dataclasses.asdict(v) for k, v in self.priors.items()}
         return out
 
     @classmethod
     def from_dict(cls, doc: dict) -> FitOptions:
-        """The inverse of :meth:`to_dict`."""
+        """The inverse of :meth:`to_dict`. Raises :class:`~rattlefit.errors.RattlefitError`
+        naming an unknown option."""
         doc = dict(doc)
         priors = {k: ParameterSpec(**v) for k, v in doc.pop("priors", {}).items()}
+        unknown = sorted(set(doc) - set(OPTION_NAMES))
+        check(not unknown, f"FitOptions: unknown option(s) {', '.join(map(repr, unknown))}")
         return cls(priors=priors, **doc)
+
+
+#: Every option's name, in the order result JSON and chain files use.
+OPTION_NAMES: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(FitOptions))
+
+#: The :meth:`FitOptions.quick` preset.
+QUICK = dict(
+    n_realisations=3,
+    n_noise_realisations=6,
+    n_covariance_realisations=8,
+    n_starts=16,
+    n_refine=1,
+    max_iterations=3,
+    profile_rounds=0,
+    profile_bisections=0,
+    profile_continuation=0,
+    learning_initial=512,
+    learning_rounds=2,
+    learning_per_round=256,
+)
+#: The :meth:`FitOptions.optimum_only` preset.
+OPTIMUM_ONLY = dict(
+    profile_group=False,
+    profile_rounds=0,
+    profile_bisections=0,
+    profile_continuation=0,
+    profile_valley=False,
+    profile_roughness=False,
+    recentre_rounds=0,
+)

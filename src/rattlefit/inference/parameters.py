@@ -27,7 +27,7 @@ from ..quantities import FILM, quantity
 from ..util import array_namespace
 
 if TYPE_CHECKING:
-    from .rig import RigSetup
+    from ..rig import RigSetup
 
 #: Range ends of the unconstrained coordinate (sigmoid(±8) is within 3.4e-4 of the end:
 #: a = 1.003 µm, for instance).

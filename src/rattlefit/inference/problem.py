@@ -34,6 +34,7 @@ from ..physics.model import (
     film_for_squeeze_momentum,
     share_stiffness_tables,
 )
+from ..rig import RigSetup, setup
 from ..simulation.solve import (
     absolute_tolerances,
     quantised_relative_motion,
@@ -43,7 +44,6 @@ from ..simulation.solve import (
 from ..util import array_namespace
 from .options import FitOptions
 from .parameters import default_specs, films_of, momentum_name
-from .rig import RigSetup, setup
 
 
 def _stack(trees):

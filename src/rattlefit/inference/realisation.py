@@ -7,9 +7,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..io.recording import Recording
+from ..rig import setup
 from ..simulation.solve import absolute_tolerances, simulate
 from .result import FitResult
-from .rig import setup
 
 
 def fitted_realisations(result: FitResult, recordings: Sequence[Recording]) -> list[np.ndarray]:

@@ -16,7 +16,7 @@ from .problem import Problem
 
 #: Where the starting points of (a, T_b) are spread (log-uniformly), m and N m.
 START_RANGES = ((5e-6, 2e-3), (5e-3, 0.2))  # (each film half-length, drag torque)
-#: Starting points for (a, T_b) when ``SearchOptions.n_starts`` is None; twice as many for
+#: Starting points for (a, T_b) when ``FitOptions.n_starts`` is None; twice as many for
 #: each further film half-length (a fit across lubrications).
 START_POINTS = 64
 #: How far the nuisance starts spread each parameter with a prior, in its prior's standard

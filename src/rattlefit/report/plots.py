@@ -19,9 +19,9 @@ from ..features.orders import (
 from ..features.spectra import welch_psd
 from ..inference.posterior import Posterior
 from ..inference.result import FitResult
-from ..inference.rig import setup
 from ..io.recording import Recording
 from ..quantities import axis_label, display
+from ..rig import setup
 from ..util import atomic_write
 
 
@@ -141,10 +141,17 @@ def plot_fit(
 
 
 def plot_posterior(
-    post: Posterior, directory: str | Path, recordings: list[Recording] | None = None
+    post: Posterior,
+    directory: str | Path,
+    recordings: list[Recording] | None = None,
+    *,
+    predictive: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> list[Path]:
     """Trace of every walker (burn-in shaded), the pairwise marginals of the kept draws and,
-    given the recordings, a posterior predictive check of the band spectrum (8 draws)."""
+    given ``predictive`` (:meth:`~rattlefit.inference.posterior.Posterior.predictive_features`
+    of ``recordings``: draws (D, R, B), the measured bands (R, B) and the band centres (B,)
+    in Hz), a posterior predictive check of each recording's band spectrum. Draws only: it
+    simulates nothing."""
     directory = Path(directory)
     names, p = post.names, len(post.names)
     scale = [display(n, u) for n, u in zip(names, post.units, strict=True)]
@@ -180,8 +187,8 @@ def plot_posterior(
             ax.tick_params(labelsize=6)
     fig.suptitle("posterior: pairwise marginals (dotted: 95 % credible interval)")
     out.append(_save(fig, directory / "posterior_pairs.png"))
-    if recordings:
-        draws, data, centres = post.predictive_features(recordings)
+    if recordings and predictive is not None:
+        draws, data, centres = predictive
         for k, rec in enumerate(recordings):
             fig, ax = pyplot().subplots(figsize=(9, 4.5))
             for i, d in enumerate(draws[:, k]):

@@ -17,7 +17,7 @@ def recording_summary(rec: Recording, file: str | Path | None = None) -> dict:
     nothing looks wrong). Raises :class:`~rattlefit.errors.RattlefitError` for a recording
     whose gear pair cannot be built.
     """
-    from ..inference.rig import setup
+    from ..rig import setup
 
     rig = setup(rec)
     g, op = rig.geometry, rec.operating

@@ -38,7 +38,7 @@ def truth() -> dict:
 
 def operating_points(names) -> list:
     """(name, RigSetup, truth dict) of each named recording, in the order given."""
-    from ..inference import rig
+    from .. import rig
     from ..io.recording import read_recording
 
     known = truth()

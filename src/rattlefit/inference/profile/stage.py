@@ -146,7 +146,7 @@ def polish_points(problem: Problem, options: FitOptions, starts, fixed) -> np.nd
         starts,
         fixed,
         steps,
-        iterations=options.profile.polish_iterations,
+        iterations=options.polish_iterations,
         damping=POLISH_DAMPING,
     )
 
@@ -174,7 +174,7 @@ def bisect_ends(work: ProfileWork, profiles: dict) -> None:
         work.z,
         work.cov,
         work.costs,
-        rounds=work.options.profile.bisections,
+        rounds=work.options.profile_bisections,
         valley=work.valley,
     )
     work.costs.complete_ends(profiles, work.threshold)
@@ -186,7 +186,7 @@ def polish_rounds(work: ProfileWork, profiles: dict) -> None:
     """Re-optimise the other parameters at the scanned values just outside each interval
     (a profile likelihood), and once more if that moved an end outwards."""
     polished: set[tuple[int, float]] = set()
-    for _ in range(work.options.profile.rounds):
+    for _ in range(work.options.profile_rounds):
         todo = [
             (i, t_out)
             for i, prof in profiles.items()
@@ -213,7 +213,7 @@ def continue_ends(work: ProfileWork, profiles: dict, specs) -> None:
         work.costs,
         work.polish,
         lambda i, t: CONTINUATION_LOG_STEP / float(specs[i].dlog_dz(t)),
-        rounds=work.options.profile.continuation,
+        rounds=work.options.profile_continuation,
         valley=work.valley,
     )
     work.say(f"  {n_cont} continuation point(s)")
@@ -254,7 +254,7 @@ def profile_stage(
     # the optimum, the other candidates distinct from it, and with the roughness allowance
     # the points 1–2 % away: one batched evaluation
     others = [zr for zr in contenders if np.max(np.abs(zr - z)) > SCAN_SAME]
-    jitter = jitter_points(problem, z, only) if options.profile.roughness else np.empty((0, len(z)))
+    jitter = jitter_points(problem, z, only) if options.profile_roughness else np.empty((0, len(z)))
     near = np.concatenate([z[None], jitter, *(zr[None] for zr in others)])
     per_near = evaluate(problem, near, y0)
     costs_near = np.array([cost_of(per_near[k], near[k]) for k in range(len(near))])
@@ -271,14 +271,14 @@ def profile_stage(
         per_near[: 1 + len(jitter)],
         near[: 1 + len(jitter)],
         threshold,
-        options.profile.screen,
+        options.profile_screen,
         chunk=chunk_size(),
     )
     if costs.limit is not None:
         say(
-            f"  profile values simulated with {options.profile.screen} of {y0.shape[1]} "
+            f"  profile values simulated with {options.profile_screen} of {y0.shape[1]} "
             f"realisations first; set aside above Δcost {costs.limit:.0f} "
-            f"(Δcost rms {costs.noise:.1f} with {options.profile.screen} near the optimum)"
+            f"(Δcost rms {costs.noise:.1f} with {options.profile_screen} near the optimum)"
         )
     profiles = profile_scan(specs, z, lap.covariance, costs, valley=valley, only=only)
     rivals = admit_rivals(profiles, others, dcost_near[len(jitter) :], threshold)
@@ -298,12 +298,12 @@ def profile_stage(
     work = ProfileWork(z, lap.covariance, threshold, costs, polish, valley, options, say)
     bisect_ends(work, profiles)
     polish_rounds(work, profiles)
-    if options.profile.continuation:
+    if options.profile_continuation:
         continue_ends(work, profiles, specs)
     if costs.n_set_aside:
         say(
             f"  {costs.n_set_aside} of {costs.n_screened} screened profile "
-            f"points set aside after {options.profile.screen} realisations "
+            f"points set aside after {options.profile_screen} realisations "
             f"({costs.n_completed} completed later: they end a bracket)"
         )
     # the optimum should be the profiles' minimum (see lower_profile_point)

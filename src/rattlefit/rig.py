@@ -11,13 +11,13 @@ import dataclasses
 
 import numpy as np
 
-from ..features.folded import cycle_phase, folded_statistics
-from ..features.spectra import BandSpec, quantisation_floor, rattle_index, spectral_features
-from ..io.recording import Recording
-from ..physics.drive import Drive
-from ..physics.geometry import GearGeometry
-from ..physics.model import RattleModel
-from ..physics.oil import dynamic_viscosity
+from .features.folded import cycle_phase, folded_statistics
+from .features.spectra import BandSpec, quantisation_floor, rattle_index, spectral_features
+from .io.recording import Recording
+from .physics.drive import Drive
+from .physics.geometry import GearGeometry
+from .physics.model import RattleModel
+from .physics.oil import dynamic_viscosity
 
 #: Harmonics of the fluctuation frequency in the fitted drive.
 DRIVE_HARMONICS = 6
