@@ -158,56 +158,19 @@ def inspect_unit(unit: Unit, fit: FitOptions, learned: bool, env: Environment) -
 
 
 def resimulated_igr(result, recordings, options: FitOptions, n: int) -> list[list[float]]:
-    """Per recording, the IGR (rad·Hz) of ``n`` realisations simulated at ``result``'s
-    fitted parameters on the recording's rig (its drive, duration and encoders, released at
-    seeded points across the gap; seeded by the fit's seed and the recording's index), at
+    """Per recording, the IGR (rad·Hz) of ``n`` recordings of the fitted model
+    (:func:`~rattlefit.inference.realisation.fitted_recordings`: the recording's rig, released
+    at seeded points across the gap, seeded by the fit's seed and the recording's index), at
     the fit's relative tolerance and the absolute tolerances of a dry fit (the tightest), so
     that every lubrication runs one compiled program."""
-    import jax.numpy as jnp
-
     from ..features.spectra import rattle_index
-    from ..rig import setup
-    from ..simulation.solve import (
-        absolute_tolerances,
-        broadcast_params,
-        raise_if_failed,
-        simulate_batch,
-    )
-    from ..simulation.synthetic import recording_from_trajectory
+    from ..inference.realisation import fitted_recordings
 
-    atol = absolute_tolerances(options.rtol, ("dry",))
     out = []
     for k, rec in enumerate(recordings):
-        rig = setup(rec, drive=options.drive)
-        params = result.rattle_params(k)
         rng = np.random.default_rng([options.seed, k])
-        c = 0.5 * float(params.backlash)
-        y0 = np.stack([rng.uniform(-c, c, size=n), np.zeros(n)], axis=1)
-        sols = raise_if_failed(
-            simulate_batch(
-                rig.model,
-                broadcast_params(params, n),
-                rig.drive,
-                y0=jnp.asarray(y0),
-                duration=rec.duration,
-                sample_rate=rec.sample_rate_hz,
-                rtol=options.rtol,
-                atol=atol,
-            )
-        )
-        igr = []
-        for i in range(n):
-            quantised = recording_from_trajectory(
-                rig.geometry,
-                rec.operating,
-                sols.theta1,
-                sols.q[i],
-                oil=rec.oil,
-                sample_rate=rec.sample_rate_hz,
-                counts_per_rev=rec.counts_per_rev,
-            )
-            igr.append(float(rattle_index(quantised.relative_motion, rec.sample_rate_hz)))
-        out.append(igr)
+        again = fitted_recordings(result, rec, k, n, rng=rng, rtol=options.rtol)
+        out.append([float(rattle_index(r.relative_motion, rec.sample_rate_hz)) for r in again])
     return out
 
 

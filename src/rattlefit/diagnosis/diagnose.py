@@ -74,6 +74,7 @@ from ..rig import setup
 from ..util import stamped
 from .cycle import cycle_gap
 from .evidence import ENCODER_VISIBLE, FOUND_ONLY, candidate_static, findings
+from .null import NULL_REALISATIONS, with_simulated_null
 from .outcome import EffectOutcome
 from .pairs import pair_candidates, pair_name, settled_single, try_pair
 from .result import Diagnosis, baseline_warnings
@@ -118,6 +119,9 @@ class DiagnoseOptions:
     significance : family-wise level: an effect counts as supported when its F-test p is
         below ``significance`` over the number of effects fitted (Bonferroni); the
         model-free tests share it likewise, and the band gap is tested at it.
+    null_realisations : recordings of the fitted model without effects that give the
+        encoder tests' null where one of them finds a pattern
+        (:mod:`rattlefit.diagnosis.null`); 0 judges them by their decoys alone.
     every_effect : fit every effect to the band spectrum, also those the encoders show no
         sign of and when the model without effects fits within its noise (by default they
         are skipped: they could not be named).
@@ -130,12 +134,18 @@ class DiagnoseOptions:
     n_final: int | None = None
     significance: float = 0.01
     every_effect: bool = False
+    null_realisations: int = NULL_REALISATIONS
 
     def __post_init__(self):
         for name in self.effects:
             effect_class(name)  # raises with the list of known effects
         if self.iterations < 0 or self.base_iterations < 0:
             raise RattlefitError("DiagnoseOptions.iterations and base_iterations must be ≥ 0")
+        if self.null_realisations != 0 and self.null_realisations < 8:
+            raise RattlefitError(
+                "DiagnoseOptions.null_realisations must be 0 (decoys alone) or ≥ 8, got "
+                f"{self.null_realisations}"
+            )
 
 
 def refit_without_effects(trial: Trial, z, say) -> tuple[np.ndarray, float, float]:
@@ -219,7 +229,7 @@ def trial_of(
     fit_options = baseline.options
     n_validation = fit_options.n_covariance_realisations
     n_final = options.n_final or FINAL_FACTOR * n_validation
-    s_final, s_validation = np.random.SeedSequence(fit_options.seed).spawn(2)
+    s_final, s_validation = np.random.SeedSequence(fit_options.seed).spawn(2)  # null: third
     y0 = release_states(base, baseline.z, n_final, np.random.default_rng(s_final))
     validation = release_states(base, baseline.z, n_validation, np.random.default_rng(s_validation))
     dry = dry_films(base, recordings)
@@ -394,6 +404,25 @@ def model_free(recordings, options: DiagnoseOptions, say):
     return found, {f.effect for f in found if f.significant}
 
 
+def simulated_null(found, recordings, baseline: FitResult, options: DiagnoseOptions, say):
+    """``found`` with the encoder findings judged again against the fitted model's null
+    (:func:`~rattlefit.diagnosis.null.with_simulated_null`, from the third child of the fit's
+    seed), and the effects the significant ones then point to."""
+    seed = np.random.SeedSequence(baseline.options.seed).spawn(3)[2]
+    again = with_simulated_null(
+        found, recordings, baseline, n=options.null_realisations, seed=seed, say=say
+    )
+    for before, after in zip(found, again, strict=True):
+        if before.significant and not after.significant:
+            say(
+                f"  {after.test.name} of recording {after.recording}: "
+                f"{after.test.detail['null_exceeding']} of {options.null_realisations} "
+                f"recordings of the model without effects reach it; not evidence of "
+                f"{after.effect}"
+            )
+    return again, {f.effect for f in again if f.significant}
+
+
 def base_model(trial: Trial, baseline: FitResult, say):
     """The model without effects re-fitted (:func:`refit_without_effects`) from
     ``baseline``: its point, its χ² on the fresh realisations, the identification's cost and
@@ -430,8 +459,9 @@ def diagnose(
     t_start = time.perf_counter()
     say = stamped(progress, t_start)  # progress, stamped with the time since the start
     platform = platform_info()
-    found, seen = model_free(recordings, options, say)
+    found, _ = model_free(recordings, options, say)
     baseline = identified(recordings, options, baseline, progress, say)
+    found, seen = simulated_null(found, recordings, baseline, options, say)
     trial = trial_of(
         recordings, baseline, options, in_program(options, seen), candidate_static(found)
     )

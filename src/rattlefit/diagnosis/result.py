@@ -110,6 +110,7 @@ class Diagnosis:
             "gap_chi2": dict(zip(("chi2", "dof", "p_value"), self.gap_chi2, strict=True)),
             "band_gap_explained": v.band_gap_explained,
             "indistinguishable": [o.name for o in v.indistinguishable],
+            "verdict_contradicted": list(v.contradicted),
             "significance": self.significance,
             "findings": [f.as_dict() for f in self.findings],
             "skipped": dict(self.skipped),

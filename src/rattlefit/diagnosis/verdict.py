@@ -6,7 +6,9 @@
 the band spectrum and the drive-cycle statistics. Its wording is
 :func:`rattlefit.report.verdict_sentence`'s.
 
-The rules: the effects that significant model-free tests point to are named; a band candidate
+The rules: the effects that significant model-free tests point to are named, unless fitting
+one to the band spectrum worsens the misfit beyond the Monte Carlo noise (:func:`contradicted`);
+a band candidate
 is named when it is *nameable* (:func:`nameable`), closes the band gap (it leaves a misfit
 consistent with noise or removes at least :data:`CLOSES_MOST` of the excess) and no candidate
 of another mechanism also leaves a misfit consistent with noise (:func:`rivals`): a gap that
@@ -61,6 +63,8 @@ class Verdict:
     effects : the named effects, model-free findings first.
     found : the most significant finding of each effect the model-free tests name.
     explaining : the band candidate that explains the band gap, or None.
+    contradicted : effects a significant finding points to that are not named, because
+        fitting them worsens the band misfit (:func:`contradicted`).
     indistinguishable : when candidates of different mechanisms close the gap alike, the one
         that closes it best and each other one that leaves noise, the least misfit first.
     band_gap, cycle_missed : as in :class:`Evidence`.
@@ -73,6 +77,7 @@ class Verdict:
     indistinguishable: tuple[EffectOutcome, ...]
     band_gap: bool
     cycle_missed: bool
+    contradicted: tuple[str, ...] = ()
 
     @property
     def label(self) -> str:
@@ -94,11 +99,23 @@ def found_effects(findings: Sequence[Finding]) -> list[tuple[str, Finding]]:
     return list(best.items())
 
 
+def contradicted(name: str, outcomes: Sequence[EffectOutcome]) -> bool:
+    """Fitting effect ``name`` alone to the band spectrum made the misfit worse by more than
+    the Monte Carlo noise of a χ² difference: the band spectrum speaks against it."""
+    return any(
+        o.name == name and not o.failure and -o.delta_chi2 > o.noise_threshold for o in outcomes
+    )
+
+
 def seen_in_bands(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> frozenset[str]:
     """The effects the model-free tests found that were also fitted to the band spectrum
-    (and whose fit did not fail): the encoders show them present, so a band explanation must
-    hold them."""
-    fitted = {o.name for o in outcomes if not o.failure and "+" not in o.name}
+    (and whose fit did not fail, nor worsened the misfit: :func:`contradicted`): the encoders
+    show them present, so a band explanation must hold them."""
+    fitted = {
+        o.name
+        for o in outcomes
+        if not o.failure and "+" not in o.name and not contradicted(o.name, outcomes)
+    }
     return evidence.seen & fitted
 
 
@@ -171,6 +188,8 @@ def decide(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> Verdict:
     significant model-free findings, then the band candidate that explains the band gap
     (:func:`closing`, unless it has :func:`rivals`)."""
     found = found_effects(evidence.findings)
+    against = tuple(name for name, _ in found if contradicted(name, outcomes))
+    found = [(name, f) for name, f in found if name not in against]
     alike = indistinguishable(outcomes, evidence)
     explaining = None if alike else closing(outcomes, evidence)
     names = [name for name, _ in found]
@@ -190,4 +209,5 @@ def decide(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> Verdict:
         indistinguishable=alike,
         band_gap=evidence.band_gap,
         cycle_missed=evidence.cycle_missed,
+        contradicted=against,
     )

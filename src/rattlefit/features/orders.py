@@ -469,10 +469,15 @@ def tooth_offsets(events: ContactEvents, recording: Recording, wheel: str, order
         f"tooth.{k}": (index == k).astype(float) - (index == 0) for k in range(1, teeth)
     }
     fit = flank_regression(events, recording, terms)
+    # a tooth never met together with tooth 0's contrast has no column (design leaves it
+    # out): its contrast is zero, and it is not tested below
     i = fit.block("tooth.")
-    b = np.concatenate([[-fit.coef[i].sum()], fit.coef[i]])
-    contrast = np.vstack([-np.ones(i.size), np.eye(i.size)])
-    cov = contrast @ fit.covariance[np.ix_(i, i)] @ contrast.T
+    k = np.array([int(fit.columns[j].split(".")[1]) - 1 for j in i], int)
+    coef, cov_k = np.zeros(teeth - 1), np.zeros((teeth - 1, teeth - 1))
+    coef[k], cov_k[np.ix_(k, k)] = fit.coef[i], fit.covariance[np.ix_(i, i)]
+    b = np.concatenate([[-coef.sum()], coef])
+    contrast = np.vstack([-np.ones(teeth - 1), np.eye(teeth - 1)])
+    cov = contrast @ cov_k @ contrast.T
     seen = np.bincount(index[fit.kept], minlength=teeth)
     pairs = np.unique(np.stack([index[fit.kept], events.episode[fit.kept]]), axis=1)
     episodes = np.bincount(pairs[0], minlength=teeth)
@@ -484,6 +489,22 @@ def tooth_offsets(events: ContactEvents, recording: Recording, wheel: str, order
     sd = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", proj, cov, proj), 0.0))
     sd[~tested] = np.inf
     return local, sd
+
+
+def encoder_statistics(
+    recording: Recording, events: ContactEvents | None = None
+) -> dict[str, float]:
+    """The encoder tests' statistics before any inflation, by test name: the run-out Wald χ²
+    of each wheel (:func:`runout_evidence`'s), the mesh order's
+    (:func:`mesh_order_evidence`'s) and each wheel's largest squared tooth t
+    (:func:`tooth_evidence`'s)."""
+    events = contact_events(recording) if events is None else events
+    fit = flank_regression(events, recording, runout_terms(events))
+    out = {f"runout.{w}": fit.wald(f"{w}.")[0] for w in ("primary", "secondary")}
+    out["mesh_order"] = mesh_order_evidence(recording, events).chi2
+    for wheel in ("primary", "secondary"):
+        out[f"tooth.{wheel}"] = max_t2(*tooth_offsets(events, recording, wheel))[0]
+    return out
 
 
 def wheel_teeth(recording: Recording, wheel: str) -> int:
@@ -636,10 +657,15 @@ def drive_order_evidence(recording: Recording, *, n_harmonics: int = 6) -> Angle
     drive leaves there (:func:`quantisation_inflation`); the test is the order of least p,
     its p corrected for the number of orders scanned (Šidák). ``amplitude`` is that order's
     acceleration amplitude (rad/s²); ``detail`` holds the order, its inflation and the number
-    of orders scanned."""
+    of orders scanned. Where every order falls on a drive harmonic (a drive fluctuating once
+    per revolution, or at a whole multiple of it), nothing is scanned: a ripple could not be
+    told from the drive, and the test has χ² 0 and p 1."""
     theta = recording.theta_primary
-    residual = primary_residual(recording, n_harmonics)
     orders = ripple_orders(recording)
+    if orders.size == 0:
+        detail = {"order": 0, "inflation": 1.0, "orders_scanned": 0}
+        return AngleTest("drive_order", 0.0, 2, 1.0, 0.0, 0.0, detail)
+    residual = primary_residual(recording, n_harmonics)
     chi2, amps, var = order_projections(residual, theta, orders)
     lam = np.maximum(
         local_inflation(order_projections(residual, theta, orders + 0.5)[0]),

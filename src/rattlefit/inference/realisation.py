@@ -1,14 +1,23 @@
-"""One realisation of the fitted model per recording, to draw beside the measurement."""
+"""Realisations of the fitted model: one per recording to draw beside the measurement, or
+many, read through the rig's encoders, as recordings of the fitted model."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
+import jax.numpy as jnp
 import numpy as np
 
 from ..io.recording import Recording
 from ..rig import setup
-from ..simulation.solve import absolute_tolerances, simulate
+from ..simulation.solve import (
+    absolute_tolerances,
+    broadcast_params,
+    raise_if_failed,
+    simulate,
+    simulate_batch,
+)
+from ..simulation.synthetic import recording_from_trajectory
 from .result import FitResult
 
 
@@ -31,3 +40,54 @@ def fitted_realisations(result: FitResult, recordings: Sequence[Recording]) -> l
         )
         out.append(np.asarray(sol.relative_motion))
     return out
+
+
+def fitted_recordings(
+    result: FitResult,
+    recording: Recording,
+    k: int,
+    n: int,
+    *,
+    rng: np.random.Generator,
+    lubrications: Sequence[str] = ("dry",),
+    rtol: float | None = None,
+) -> list[Recording]:
+    """``n`` recordings that the rig of ``recording`` (the fit's recording ``k``: its drive
+    as the fit reconstructs it, its duration and sample rate) would give at ``result``'s
+    fitted parameters of recording ``k``, without any effect: each released from rest at a
+    point drawn uniformly across the gap, and read through the two encoders with their zeros
+    drawn uniformly over a revolution, all from ``rng``. ``rtol`` (default the fit's) and the
+    absolute tolerances of ``lubrications`` (default the dry ones, the tightest, so that
+    every lubrication runs one compiled program) set the solver's accuracy. Raises
+    :class:`~rattlefit.errors.SolverError` when a simulation fails."""
+    rtol = result.options.rtol if rtol is None else rtol
+    rig = setup(recording, drive=result.options.drive)
+    params = result.rattle_params(k)
+    c = 0.5 * float(params.backlash)
+    y0 = np.stack([rng.uniform(-c, c, size=n), np.zeros(n)], axis=1)
+    zeros = rng.integers(0, recording.counts_per_rev, size=(n, 2))
+    sols = raise_if_failed(
+        simulate_batch(
+            rig.model,
+            broadcast_params(params, n),
+            rig.drive,
+            y0=jnp.asarray(y0),
+            duration=recording.duration,
+            sample_rate=recording.sample_rate_hz,
+            rtol=rtol,
+            atol=absolute_tolerances(rtol, tuple(lubrications)),
+        )
+    )
+    return [
+        recording_from_trajectory(
+            rig.geometry,
+            recording.operating,
+            sols.theta1,
+            sols.q[i],
+            oil=recording.oil,
+            sample_rate=recording.sample_rate_hz,
+            counts_per_rev=recording.counts_per_rev,
+            zeros=tuple(int(z) for z in zeros[i]),
+        )
+        for i in range(n)
+    ]

@@ -93,10 +93,27 @@ def explaining_phrase(diag: Diagnosis) -> str:
     )
 
 
+def contradicted_words(diag: Diagnosis) -> str:
+    """The clause on the encoder findings the verdict does not name because fitting them
+    worsens the band misfit, or empty."""
+    names = diag.verdict.contradicted
+    if not names:
+        return ""
+    return (
+        f"; {' and '.join(names)}, which the model-free tests point to, is not named: "
+        "fitting it worsens the band misfit"
+    )
+
+
 def verdict_sentence(diag: Diagnosis) -> str:
     """The verdict of ``diag`` (:attr:`~rattlefit.diagnosis.result.Diagnosis.verdict`) in one
     plain sentence."""
     v = diag.verdict
+    if v.kind == "none" and v.contradicted:
+        return (
+            f"No significant gap: the model without extra effects fits the band spectrum "
+            f"({fit_words(diag)}) and its drive-cycle statistics{contradicted_words(diag)}."
+        )
     if v.kind == "none":
         return (
             f"No significant gap: the model without extra effects fits the band spectrum "
@@ -106,10 +123,10 @@ def verdict_sentence(diag: Diagnosis) -> str:
     if v.kind == "unexplained" and not v.band_gap:
         return (
             f"A gap that no candidate explains: the band spectrum fits ({fit_words(diag)}), "
-            f"but {cycle_words(diag)}."
+            f"but {cycle_words(diag)}{contradicted_words(diag)}."
         )
     if v.kind == "unexplained":
-        return unexplained_gap(diag)
+        return unexplained_gap(diag)[:-1] + contradicted_words(diag) + "."
     parts = [finding_phrase(f) for f in v.found]
     found = {f.effect for f in v.found}
     if v.explaining is not None and not set(v.explaining.effects) <= found:
@@ -117,7 +134,7 @@ def verdict_sentence(diag: Diagnosis) -> str:
     sentence = "Found " + " and ".join(parts)
     if v.band_gap and v.explaining is None:
         sentence += f"; the band misfit ({fit_words(diag)}) remains unexplained"
-    return sentence + "."
+    return sentence + contradicted_words(diag) + "."
 
 
 def diagnosis_document(diag: Diagnosis) -> dict:

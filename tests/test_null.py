@@ -1,0 +1,145 @@
+"""The encoder tests' null from the fitted model (rattlefit.diagnosis.null), and the verdict's
+rule that a finding whose band fit worsens the misfit is not named."""
+
+from __future__ import annotations
+
+import types
+
+import numpy as np
+import pytest
+
+import rattlefit as rf
+from rattlefit.diagnosis.evidence import Finding, findings
+from rattlefit.diagnosis.null import rejudged, with_simulated_null
+from rattlefit.diagnosis.outcome import EffectOutcome
+from rattlefit.diagnosis.verdict import Evidence, decide
+from rattlefit.features.orders import AngleTest, drive_order_evidence, tooth_offsets
+from rattlefit.io.recording import OperatingPoint
+from rattlefit.testing.diagnose_sets import DrivenToothNotch
+
+MEAN_SPEED = 52.36  # rad/s: the paper's 500 rpm
+#: A short recording keeps the null's 50 simulations within the test suite's time.
+DURATION = 1.5
+
+
+def _finding(name: str, significant: bool = True) -> Finding:
+    test = AngleTest(name, 30.0, 1, 1e-6, 10e-6, 1e-6, {"teeth": 31, "inflation": 1.2})
+    return Finding(0, test, "tooth_defect", 1e-3, significant)
+
+
+def test_a_finding_is_named_only_beyond_every_value_of_the_null():
+    kept = rejudged(_finding("tooth.secondary"), 50.0, np.array([1.0, 20.0, 49.9]))
+    assert kept.significant
+    assert kept.test.detail["null_exceeding"] == 0 and kept.test.detail["null_p"] == 0.25
+    assert kept.test.detail["null_median"] == 20.0 and kept.test.detail["inflation"] == 1.2
+    dropped = rejudged(_finding("tooth.secondary"), 50.0, np.array([1.0, 50.0, 3.0]))
+    assert not dropped.significant and dropped.test.detail["null_exceeding"] == 1
+    never = rejudged(_finding("tooth.secondary", significant=False), 50.0, np.array([1.0]))
+    assert not never.significant  # the null only takes findings away
+    assert kept.test.p_value == _finding("x").test.p_value  # the decoy test's p is kept
+
+
+def test_without_an_encoder_finding_the_null_is_not_simulated():
+    stand_in = types.SimpleNamespace()  # anything simulated would need its fields
+    found = [_finding("tooth.secondary", significant=False)]
+    assert with_simulated_null(found, [None], stand_in, seed=np.random.SeedSequence(0)) == found
+
+
+def _outcome(name, chi2_without, chi2_with, noise=2.0, supported=False):
+    return EffectOutcome(
+        name=name,
+        values={},
+        units={},
+        chi2_without=chi2_without,
+        chi2_with=chi2_with,
+        delta_chi2=chi2_without - chi2_with,
+        gap_closed=0.0,
+        p_value=0.5,
+        noise_threshold=noise,
+        supported=supported,
+        residuals=np.zeros((1, 28)),
+        wall_time=0.0,
+        p_after=0.3,
+    )
+
+
+@pytest.mark.parametrize(("chi2_with", "named"), [(15.2, True), (19.0, False)])
+def test_an_encoder_finding_whose_band_fit_worsens_the_misfit_is_not_named(chi2_with, named):
+    # the run-out of a clean recording that a drive-locked pattern fires: its band fit left
+    # χ² 14.3 → 15.2, within the Monte Carlo noise (2.0), so the encoders' word stands; a fit
+    # that adds more than the noise speaks against it
+    test = AngleTest("runout.secondary", 60.0, 8, 1e-9, 25e-6, 2e-6, {"inflation": 1.0})
+    evidence = Evidence((Finding(0, test, "runout", 1e-3, True),), False, False, 0.01)
+    verdict = decide([_outcome("runout", 14.3, chi2_with)], evidence)
+    assert verdict.effects == (("runout",) if named else ())
+    assert verdict.contradicted == (() if named else ("runout",))
+    assert verdict.kind == ("effect" if named else "none")
+
+
+def test_a_drive_that_fluctuates_once_per_revolution_leaves_no_ripple_order_to_scan():
+    g = rf.table2_pair("II", center_distance_mm=65.6)
+    op = OperatingPoint("dry", 20.0, MEAN_SPEED, 0.2 * MEAN_SPEED, MEAN_SPEED / (2 * np.pi))
+    rec, _ = rf.synthesize(g, op, rf.RattleParams(0.0, 0.025, 0.4942, g.backlash), duration=1.0)
+    test = drive_order_evidence(rec)
+    assert test.p_value == 1.0 and test.detail["orders_scanned"] == 0
+
+
+def test_tooth_offsets_keep_their_teeth_when_a_tooth_is_never_met():
+    # the bundled boundary recording's contacts without those of driven teeth 0 and 5: the
+    # flank fit then has no column for tooth 5's contrast, and the offsets still come one
+    # per tooth, the unmet ones untested (infinite error)
+    import dataclasses
+
+    from rattlefit.features.orders import contact_events, tooth_index
+
+    rec = rf.read_recording("data/pairII_boundary_65.6_20pct_16Hz.h5")
+    events = contact_events(rec)
+    teeth = rec.gear_pair.teeth_driven
+    keep = ~np.isin(tooth_index(events.theta_secondary, teeth), (0, 5))
+    fewer = type(events)(*(getattr(events, f.name)[keep] for f in dataclasses.fields(events)))
+    b, sd = tooth_offsets(fewer, rec, "secondary")
+    assert b.shape == sd.shape == (teeth,)
+    assert np.isinf(sd[[0, 5]]).all() and np.isfinite(sd).sum() >= teeth - 2 - 3
+
+
+@pytest.fixture(scope="module")
+def locked_point():
+    """Pair II, boundary, 65.6 mm, the drive fluctuating 20 % once per revolution of the
+    primary (8.33 Hz at 500 rpm): the rattle repeats with the drive cycle and so with the
+    wheel's angle, and the flank fit's wheel terms nearly coincide with its drive-cycle ones."""
+    g = rf.table2_pair("II", center_distance_mm=65.6)
+    op = OperatingPoint("boundary", 20.0, MEAN_SPEED, 0.2 * MEAN_SPEED, MEAN_SPEED / (2 * np.pi))
+    params = rf.RattleParams(0.085e-3, 0.025, 0.4942, g.backlash)
+    fitted = types.SimpleNamespace(options=rf.FitOptions(), rattle_params=lambda k: params)
+    return g, op, params, fitted
+
+
+def test_a_drive_locked_pattern_of_the_model_without_effects_is_not_named(locked_point):
+    # rattlefit's own clean recording: the decoy-calibrated run-out and tooth tests fire on a
+    # pattern the rattle locks to the drive; the model without effects makes it as strongly,
+    # so against its null neither is named
+    g, op, params, fitted = locked_point
+    rec, _ = rf.synthesize(g, op, params, seed=0, duration=DURATION)
+    found = findings([rec], 0.01)
+    fired = [f for f in found if f.significant and f.effect in ("runout", "tooth_defect")]
+    assert fired, [(f.test.name, f.test.p_value) for f in found]
+    again = with_simulated_null(found, [rec], fitted, seed=np.random.SeedSequence(0))
+    after = {f.test.name: f for f in again}
+    for f in fired:
+        assert not after[f.test.name].significant, after[f.test.name].test.detail
+        assert after[f.test.name].test.detail["null_exceeding"] >= 1
+
+
+def test_a_notch_on_a_driven_tooth_stands_outside_the_null(locked_point):
+    # the same point with a V-shaped notch of 25 µm on one driven tooth (another form than the
+    # catalogue's tooth defect): its tooth test stands beyond every recording of the model
+    # without effects
+    g, op, params, fitted = locked_point
+    notch = DrivenToothNotch(depth=25e-6, position=1.0, shape="triangle")
+    rec, _ = rf.synthesize(g, op, params, seed=0, duration=DURATION, effects=(notch,))
+    found = findings([rec], 0.01)
+    again = with_simulated_null(found, [rec], fitted, seed=np.random.SeedSequence(0))
+    (tooth,) = [f for f in again if f.test.name == "tooth.secondary"]
+    assert tooth.significant, tooth.test.detail
+    assert tooth.test.detail["null_exceeding"] == 0
+    assert 10e-6 < tooth.test.amplitude < 40e-6  # the notch's depth, as the fit sees it
