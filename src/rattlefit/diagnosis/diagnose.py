@@ -415,10 +415,9 @@ def simulated_null(found, recordings, baseline: FitResult, options: DiagnoseOpti
     for before, after in zip(found, again, strict=True):
         if before.significant and not after.significant:
             say(
-                f"  {after.test.name} of recording {after.recording}: "
-                f"{after.test.detail['null_exceeding']} of {options.null_realisations} "
-                f"recordings of the model without effects reach it; not evidence of "
-                f"{after.effect}"
+                f"  {after.test.name} of recording {after.recording}: within the null of "
+                f"{options.null_realisations} recordings of the model without effects "
+                f"(p = {after.test.detail['null_p']:.2g}); not evidence of {after.effect}"
             )
     return again, {f.effect for f in again if f.significant}
 

@@ -407,6 +407,20 @@ def inflation(events: ContactEvents, recording: Recording, wheel: str) -> float:
     return max(1.0, float(np.median(chi2)) / stats.chi2.median(4))
 
 
+def within_play(test: AngleTest, recording: Recording) -> AngleTest:
+    """``test``, or, when its pattern is larger than the play itself (the recording's
+    angular backlash on the driving pitch circle), the test with χ² 0 and p 1 and
+    ``detail["beyond_play"]``: the flanks cannot move further apart than the gap, so such a
+    size is no pattern but a fit that cannot tell the wheel's angle from the drive cycle (a
+    drive fluctuating once or twice per revolution makes them nearly the same columns)."""
+    play = pitch_radius_driving(recording) * recording.gear_pair.angular_backlash_rad
+    if test.amplitude <= play:
+        return test
+    return dataclasses.replace(
+        test, chi2=0.0, p_value=1.0, detail=test.detail | {"beyond_play": True}
+    )
+
+
 def runout_evidence(recording: Recording, events: ContactEvents | None = None) -> list[AngleTest]:
     """Swings of the flanks once and twice per revolution of each wheel (run-out: eccentricity
     and ovality, a shift of both flanks and a change of the play), one test per wheel
@@ -420,15 +434,14 @@ def runout_evidence(recording: Recording, events: ContactEvents | None = None) -
     for wheel in ("primary", "secondary"):
         test = sinusoid_test(fit, f"{wheel}.", f"runout.{wheel}", r1)
         lam = inflation(events, recording, wheel)
-        out.append(
-            dataclasses.replace(
-                test,
-                chi2=test.chi2 / lam,
-                p_value=float(stats.chi2.sf(test.chi2 / lam, test.dof)),
-                amplitude_sd=test.amplitude_sd * math.sqrt(lam),
-                detail=test.detail | {"inflation": lam},
-            )
+        test = dataclasses.replace(
+            test,
+            chi2=test.chi2 / lam,
+            p_value=float(stats.chi2.sf(test.chi2 / lam, test.dof)),
+            amplitude_sd=test.amplitude_sd * math.sqrt(lam),
+            detail=test.detail | {"inflation": lam},
         )
+        out.append(within_play(test, recording))
     return out
 
 
@@ -442,7 +455,8 @@ def mesh_order_evidence(recording: Recording, events: ContactEvents | None = Non
         "mesh.shift.sin": np.sin(z1 * events.theta_primary),
     }
     fit = flank_regression(events, recording, terms)
-    return sinusoid_test(fit, "mesh.", "mesh_order", pitch_radius_driving(recording))
+    test = sinusoid_test(fit, "mesh.", "mesh_order", pitch_radius_driving(recording))
+    return within_play(test, recording)
 
 
 def tooth_index(theta: np.ndarray, teeth: int) -> np.ndarray:
@@ -494,16 +508,22 @@ def tooth_offsets(events: ContactEvents, recording: Recording, wheel: str, order
 def encoder_statistics(
     recording: Recording, events: ContactEvents | None = None
 ) -> dict[str, float]:
-    """The encoder tests' statistics before any inflation, by test name: the run-out Wald χ²
-    of each wheel (:func:`runout_evidence`'s), the mesh order's
-    (:func:`mesh_order_evidence`'s) and each wheel's largest squared tooth t
+    """The size (m, on the driving pitch circle) of the pattern each encoder test measures,
+    by test name, before any inflation: each wheel's largest run-out swing
+    (:func:`runout_evidence`'s amplitude), the mesh order's swing
+    (:func:`mesh_order_evidence`'s) and each wheel's most significant tooth offset
     (:func:`tooth_evidence`'s)."""
     events = contact_events(recording) if events is None else events
+    r1 = pitch_radius_driving(recording)
     fit = flank_regression(events, recording, runout_terms(events))
-    out = {f"runout.{w}": fit.wald(f"{w}.")[0] for w in ("primary", "secondary")}
-    out["mesh_order"] = mesh_order_evidence(recording, events).chi2
+    out = {
+        f"runout.{w}": sinusoid_test(fit, f"{w}.", f"runout.{w}", r1).amplitude
+        for w in ("primary", "secondary")
+    }
+    out["mesh_order"] = mesh_order_evidence(recording, events).amplitude
     for wheel in ("primary", "secondary"):
-        out[f"tooth.{wheel}"] = max_t2(*tooth_offsets(events, recording, wheel))[0]
+        b, sd = tooth_offsets(events, recording, wheel)
+        out[f"tooth.{wheel}"] = r1 * abs(float(b[max_t2(b, sd)[1]]))
     return out
 
 
@@ -540,22 +560,21 @@ def tooth_evidence(recording: Recording, events: ContactEvents | None = None) ->
         null_median = stats.chi2.ppf(0.5 ** (1.0 / teeth), 1)  # of the max of `teeth` χ²₁
         lam = max(1.0, float(np.median(decoys)) / null_median) if decoys else 1.0
         p_one = stats.chi2.sf(t2 / lam, 1)
-        out.append(
-            AngleTest(
-                name=f"tooth.{wheel}",
-                chi2=t2 / lam,
-                dof=1,
-                p_value=float(1 - (1 - p_one) ** teeth),
-                amplitude=r1 * abs(float(b[worst])),
-                amplitude_sd=r1 * float(sd[worst]) * math.sqrt(lam),
-                detail={
-                    "tooth": worst,
-                    "teeth": teeth,
-                    "events_per_tooth": len(events) / teeth,
-                    "inflation": lam,
-                },
-            )
+        test = AngleTest(
+            name=f"tooth.{wheel}",
+            chi2=t2 / lam,
+            dof=1,
+            p_value=float(1 - (1 - p_one) ** teeth),
+            amplitude=r1 * abs(float(b[worst])),
+            amplitude_sd=r1 * float(sd[worst]) * math.sqrt(lam),
+            detail={
+                "tooth": worst,
+                "teeth": teeth,
+                "events_per_tooth": len(events) / teeth,
+                "inflation": lam,
+            },
         )
+        out.append(within_play(test, recording))
     return out
 
 
