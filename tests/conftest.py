@@ -22,7 +22,7 @@ from rattlefit.testing.shared import recordings_dir
 # thread (two workers each spinning two BLAS threads on two cores run numpy's matrix products
 # several times slower). numpy is loaded before this file, so the environment variable would
 # come too late: threadpoolctl sets the loaded library.
-# One compilation cache for the whole session, in a temporary directory that the main process
+# One compilation cache for the whole test run, in a temporary directory that the main process
 # makes before the workers start (they, and every CLI, notebook and campaign process a test
 # starts, inherit it) and removes at its exit: the same programs are compiled once, not once
 # per process, and the user's cache under the home directory is left alone. A cache entry is

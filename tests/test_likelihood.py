@@ -325,7 +325,7 @@ import json, os, sys
 if sys.argv[4] == "1":
     os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
 import rattlefit as rf
-rf.configure(cpu_cores=int(sys.argv[1]), compilation_cache=True)  # the session's cache
+rf.configure(cpu_cores=int(sys.argv[1]), compilation_cache=True)  # the test run's cache
 opts = rf.FitOptions.quick(seed=3, **json.loads(sys.argv[2]))
 res = rf.identify([rf.read_recording(sys.argv[3])], opts)
 print(json.dumps({k: [p.estimate, p.lower, p.upper] for k, p in res.parameters.items()}))

@@ -2,7 +2,7 @@
 
 Each ``notebooks/*.ipynb`` is executed in memory with nbclient (the committed file is never
 written) in a kernel of the interpreter running the tests, with ``RATTLEFIT_NOTEBOOK_QUICK=1``
-(the notebooks' parameter cells then choose short settings), the session's compilation cache
+(the notebooks' parameter cells then choose short settings), the test run's compilation cache
 (``RATTLEFIT_CACHE_DIR``, tests/conftest.py) and the notebooks folder as working directory.
 The notebooks' own assert cells hold their results against the paper and against the
 recordings' truth, so a notebook whose numbers drift fails here with the failing cell's
@@ -31,7 +31,7 @@ KERNEL = "python3"
 
 
 def kernel_env() -> dict[str, str]:
-    """The kernel's environment: this one (the session's compilation cache included), the
+    """The kernel's environment: this one (the test run's compilation cache included), the
     notebooks' quick switch, one BLAS thread, and the rattlefit the tests import first on the
     path (a checkout's ``src`` or the installed package's folder)."""
     env = dict(os.environ)
