@@ -3,6 +3,7 @@ rule that a finding whose band fit worsens the misfit is not named."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import types
 
@@ -13,7 +14,6 @@ from scipy import stats
 import rattlefit as rf
 from rattlefit.diagnosis.evidence import Finding, findings
 from rattlefit.diagnosis.null import COVERED_P, null_p, rejudged, with_simulated_null
-from rattlefit.diagnosis.outcome import EffectOutcome
 from rattlefit.diagnosis.verdict import Evidence, decide
 from rattlefit.features.orders import AngleTest, drive_order_evidence, tooth_offsets
 from rattlefit.io.recording import OperatingPoint
@@ -61,24 +61,6 @@ def test_without_an_encoder_finding_the_null_is_not_simulated():
     assert with_simulated_null(found, [None], stand_in, seed=np.random.SeedSequence(0)) == found
 
 
-def _outcome(name, chi2_without, chi2_with, noise=2.0, supported=False):
-    return EffectOutcome(
-        name=name,
-        values={},
-        units={},
-        chi2_without=chi2_without,
-        chi2_with=chi2_with,
-        delta_chi2=chi2_without - chi2_with,
-        gap_closed=0.0,
-        p_value=0.5,
-        noise_threshold=noise,
-        supported=supported,
-        residuals=np.zeros((1, 28)),
-        wall_time=0.0,
-        p_after=0.3,
-    )
-
-
 @pytest.mark.parametrize(("chi2_with", "named"), [(15.2, True), (19.0, False)])
 def test_an_encoder_finding_whose_band_fit_worsens_the_misfit_is_not_named(chi2_with, named):
     # the run-out of a clean recording that a drive-locked pattern fires: its band fit left
@@ -86,7 +68,11 @@ def test_an_encoder_finding_whose_band_fit_worsens_the_misfit_is_not_named(chi2_
     # that adds more than the noise speaks against it
     test = AngleTest("runout.secondary", 60.0, 8, 1e-9, 25e-6, 2e-6, {"inflation": 1.0})
     evidence = Evidence((Finding(0, test, "runout", 1e-3, True),), False, False, 0.01)
-    verdict = decide([_outcome("runout", 14.3, chi2_with)], evidence)
+    from test_diagnose import _outcome
+
+    band_fit = _outcome("runout", 14.3, chi2_with, 0.3)
+    band_fit = dataclasses.replace(band_fit, noise_threshold=2.0, supported=False)
+    verdict = decide([band_fit], evidence)
     assert verdict.effects == (("runout",) if named else ())
     assert verdict.contradicted == (() if named else ("runout",))
     assert verdict.kind == ("effect" if named else "none")
@@ -104,8 +90,6 @@ def test_tooth_offsets_keep_their_teeth_when_a_tooth_is_never_met():
     # the bundled boundary recording's contacts without those of driven teeth 0 and 5: the
     # flank fit then has no column for tooth 5's contrast, and the offsets still come one
     # per tooth, the unmet ones untested (infinite error)
-    import dataclasses
-
     from rattlefit.features.orders import contact_events, tooth_index
 
     rec = rf.read_recording("data/pairII_boundary_65.6_20pct_16Hz.h5")

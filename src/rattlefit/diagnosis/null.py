@@ -104,18 +104,17 @@ def with_simulated_null(
     if n == 0 or not suspects:
         return list(found)
     children = seed.spawn(len(recordings))
-    observed, nulls = {}, {}
+    nulls = {}
     for k in suspects:
         say(
             f"simulating the encoder tests' null of recording {k}: {n} recordings of the "
             "fitted model without effects …"
         )
-        observed[k] = encoder_statistics(recordings[k])
         nulls[k] = null_statistics(recordings[k], result, k, n, np.random.default_rng(children[k]))
-    out = []
-    for f in found:
-        if f.recording in nulls and kind_of(f.test) in SIMULATED:
-            name = f.test.name
-            f = rejudged(f, observed[f.recording][name], nulls[f.recording][name])
-        out.append(f)
-    return out
+    # a finding's amplitude is the size encoder_statistics measures on the null recordings
+    return [
+        rejudged(f, f.test.amplitude, nulls[f.recording][f.test.name])
+        if f.recording in nulls and kind_of(f.test) in SIMULATED
+        else f
+        for f in found
+    ]

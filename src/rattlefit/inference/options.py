@@ -46,6 +46,12 @@ def check_at_least(options, names, low: int, *, optional: bool = False) -> None:
         check(ok, f"FitOptions.{name} must be ≥ {low}{' or None' if optional else ''}, got {value}")
 
 
+def check_known(names) -> None:
+    """Raise unless every one of ``names`` is an option (:data:`OPTION_NAMES`)."""
+    unknown = sorted(set(names) - set(OPTION_NAMES))
+    check(not unknown, f"FitOptions: unknown option(s) {', '.join(map(repr, unknown))}")
+
+
 def check_ensemble(o: FitOptions) -> None:
     """The ensemble's options: counts, dither, tolerance, burn-in and the choices."""
     check_at_least(o, ("n_realisations", "n_noise_realisations", "n_covariance_realisations"), 2)
@@ -279,8 +285,7 @@ class FitOptions:
 
     def replace(self, **changes) -> FitOptions:
         """A copy with ``changes`` (option name → value), checked again."""
-        unknown = sorted(set(changes) - set(OPTION_NAMES))
-        check(not unknown, f"FitOptions: unknown option(s) {', '.join(map(repr, unknown))}")
+        check_known(changes)
         return dataclasses.replace(self, **changes)
 
     @classmethod
@@ -308,8 +313,7 @@ class FitOptions:
         naming an unknown option."""
         doc = dict(doc)
         priors = {k: ParameterSpec(**v) for k, v in doc.pop("priors", {}).items()}
-        unknown = sorted(set(doc) - set(OPTION_NAMES))
-        check(not unknown, f"FitOptions: unknown option(s) {', '.join(map(repr, unknown))}")
+        check_known(doc)
         return cls(priors=priors, **doc)
 
 

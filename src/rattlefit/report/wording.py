@@ -56,9 +56,9 @@ def cycle_words(diag: Diagnosis) -> str:
 
 
 def unexplained_gap(diag: Diagnosis) -> str:
-    """The sentence of a significant band gap that no candidate is named for: candidates of
-    different mechanisms close it alike, or none closes it (the least misfit any leaves is
-    given)."""
+    """The sentence, without its full stop, of a significant band gap that no candidate is
+    named for: candidates of different mechanisms close it alike, or none closes it (the
+    least misfit any leaves is given)."""
     cycle = f"; {cycle_words(diag)}" if diag.cycle_missed else ""
     alike = diag.verdict.indistinguishable
     if alike:
@@ -67,7 +67,7 @@ def unexplained_gap(diag: Diagnosis) -> str:
         return (
             f"A significant gap that candidates of different mechanisms close alike: "
             f"{fit_words(diag)}; {names} each leave a misfit within the noise (χ² {left}), so "
-            f"the band spectrum cannot tell them apart, nor from a model-form difference{cycle}."
+            f"the band spectrum cannot tell them apart, nor from a model-form difference{cycle}"
         )
     judged = [o for o in diag.outcomes if not o.failure]
     best = min(judged, key=lambda o: o.chi2_with, default=None)
@@ -77,7 +77,7 @@ def unexplained_gap(diag: Diagnosis) -> str:
         else f"; the candidate that leaves the least misfit, {best.name}, leaves "
         f"χ² {best.chi2_with:.1f} (p = {best.p_after:.2g})"
     )
-    return f"A significant gap that no candidate explains: {fit_words(diag)}{tried}{cycle}."
+    return f"A significant gap that no candidate explains: {fit_words(diag)}{tried}{cycle}"
 
 
 def explaining_phrase(diag: Diagnosis) -> str:
@@ -126,7 +126,7 @@ def verdict_sentence(diag: Diagnosis) -> str:
             f"but {cycle_words(diag)}{contradicted_words(diag)}."
         )
     if v.kind == "unexplained":
-        return unexplained_gap(diag)[:-1] + contradicted_words(diag) + "."
+        return unexplained_gap(diag) + contradicted_words(diag) + "."
     parts = [finding_phrase(f) for f in v.found]
     found = {f.effect for f in v.found}
     if v.explaining is not None and not set(v.explaining.effects) <= found:
