@@ -9,6 +9,7 @@ with known truth (the learned intervals must hold it).
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import jax
 import jax.numpy as jnp
@@ -17,7 +18,15 @@ import pytest
 from scipy import stats
 
 import rattlefit as rf
+from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose, judging_noise
+from rattlefit.inference.design import (
+    interval_factors,
+    learned_information,
+    prior_information,
+    recording_information,
+)
 from rattlefit.inference.group import flanks
+from rattlefit.inference.noise import ensemble_features
 from rattlefit.inference.parameters import ParameterSpec
 from rattlefit.inference.posterior import LearnedLogPosterior
 from rattlefit.inference.problem import problem_from
@@ -281,6 +290,63 @@ def test_the_posterior_on_the_learned_likelihood_converges_in_seconds(learned_fi
         [rec], None, dataclasses.replace(opts, n_steps=1600), backend=tmp_path / "chain.h5"
     )
     np.testing.assert_array_equal(more.chain[:1500], post.chain)
+
+
+def test_the_learned_noise_model_holds_the_simulators_spread(learned_fit):
+    # diagnose judges a learned fit with the learned density's covariance at the optimum;
+    # its spread must be the exact simulator's there: 48 fresh realisations (the dither draws
+    # come in the fit's covariance count), the floor and the Monte Carlo error of a mean of
+    # n_realisations added as the synthetic likelihood adds them
+    _, result, _ = learned_fit
+    noise, problem = judging_noise(result, result.problem)
+    rng = np.random.default_rng(5)
+    n = result.options.n_covariance_realisations
+    ens = np.concatenate(
+        [np.asarray(ensemble_features(problem, result.z, n, rng)) for _ in range(48 // n)], 1
+    )
+    var = ens.var(axis=1, ddof=1) + result.options.sigma_floor**2
+    reference = np.sqrt(var * (1 + 1 / result.options.n_realisations))
+    log_ratio = np.log(noise.sigma / reference)
+    # about 0.25 at the quick budget: the flow widens the bands its floor dominates
+    assert np.sqrt(np.mean(log_ratio**2)) < 0.4, np.round(np.exp(log_ratio), 2)
+    assert np.all(np.abs(log_ratio) < np.log(2.5)), np.round(np.exp(log_ratio), 2)
+    np.testing.assert_array_equal(np.asarray(problem.sigma), noise.sigma)
+
+
+#: The effects offered to the diagnosis of the learned fit (as tests/test_diagnose.py's TRIED).
+TRIED = ("runout", "tooth_errors", "flank_friction")
+
+
+def test_diagnose_judges_rattlefits_own_clean_recording_on_the_learned_likelihood(learned_fit):
+    rec, result, _ = learned_fit
+    diag = diagnose([rec], DiagnoseOptions(effects=TRIED, fit=result.options), baseline=result)
+    doc = diag.to_json()
+    assert doc["baseline"]["likelihood"] == "learned"
+    assert diag.verdict.kind == "none", rf.report.verdict_sentence(diag)
+    assert doc["gap_chi2"]["p_value"] > 0.01
+
+
+def test_suggest_predicts_the_learned_fits_own_width_and_the_simulators(learned_fit):
+    # the "now" row of --suggest on a learned fit is the learned likelihood's Fisher
+    # information; it must predict the learned fit's Laplace width, and agree with the
+    # information estimated from the exact simulator's realisations at the same point
+    rec, result, _ = learned_fit
+    problem = result.problem
+    names, info = learned_information(result, problem, [rec])
+    learned = interval_factors(names, info + prior_information(problem, names))
+    values = {s.name: float(s.value(result.z[i])) for i, s in enumerate(problem.specs)}
+    sim_names, sim_info = recording_information(
+        rec, values, result.options, n=24, rng=np.random.default_rng(3)
+    )
+    simulated = interval_factors(sim_names, sim_info + prior_information(problem, sim_names))
+    for name in ("film_half_length", "drag_torque"):
+        i = problem.index(name)
+        sd = math.sqrt(result.covariance_z[i, i]) * float(problem.specs[i].dlog_dz(result.z[i]))
+        laplace = 2 * 1.96 * sd
+        label = {"film_half_length": "film_half_length[boundary]"}.get(name, name)
+        width = math.log(learned[label])
+        assert 1 / 1.3 < width / laplace < 1.3, (name, width, laplace)
+        assert 1 / 1.8 < width / math.log(simulated[name]) < 1.8, (name, learned, simulated)
 
 
 def test_a_stored_likelihood_is_reused_and_refused_for_another_test_point(learned_fit, tmp_path):

@@ -635,6 +635,7 @@ def sample(
     help="Fit every effect to the band spectrum, also those the encoders show no sign of and "
     "when the model fits within its noise (they cannot be named; by default they are skipped).",
 )
+@_likelihood_options
 @_output_options("the diagnosis", "the band residuals with and without each effect")
 @_report_option("the diagnosis and the identification it starts from")
 @_prior_option
@@ -647,6 +648,8 @@ def diagnose(
     quick_fit,
     iterations,
     every_effect,
+    likelihood,
+    reuse,
     output,
     plot_dir,
     report_file,
@@ -672,7 +675,7 @@ def diagnose(
         )
     recordings = [read_recording(f) for f in files]
     make = FitOptions.quick if quick_fit else FitOptions.optimum_only
-    fit_options = make(seed=seed, priors=_priors(priors))
+    fit_options = make(seed=seed, priors=_priors(priors), **_likelihood(likelihood, reuse))
     options = DiagnoseOptions(
         effects=names, fit=fit_options, iterations=iterations, every_effect=every_effect
     )

@@ -24,7 +24,7 @@ class CampaignOptions:
         seeds every fit, its ``likelihood`` chooses the synthetic or the learned
         likelihood). Default ``FitOptions()``.
     diagnose : also diagnose each unit (:func:`rattlefit.diagnose`, starting from its
-        identification on the synthetic likelihood). Default False.
+        identification and judged on its likelihood). Default False.
     effects : the effects diagnose tries (names of
         :data:`rattlefit.physics.effects.EFFECTS`); None: all of them. Default None.
     sample_steps : steps of each unit's posterior chain (:func:`rattlefit.sample`, started

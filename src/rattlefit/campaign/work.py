@@ -288,14 +288,12 @@ def sample_stage(options: CampaignOptions, result, recordings) -> dict:
 
 
 def diagnose_stage(options: CampaignOptions, result, recordings) -> dict:
-    """The diagnosis' JSON (``diagnose -o``), from the identification when it is on the
-    synthetic likelihood, else from one of its own with the same options on it."""
+    """The diagnosis' JSON (``diagnose -o``), judged on the identification's likelihood
+    (synthetic or learned), from the identification when it ran, else from one of its own
+    with the same options."""
     from ..diagnosis.diagnose import DiagnoseOptions, diagnose
     from ..physics.effects import EFFECTS
     from ..report.wording import diagnosis_document
 
-    synthetic = options.fit.likelihood == "synthetic"
-    fit = options.fit if synthetic else options.fit.replace(likelihood="synthetic")
-    diag_options = DiagnoseOptions(effects=options.effects or tuple(EFFECTS), fit=fit)
-    baseline = result if synthetic and result is not None else None
-    return {"doc": diagnosis_document(diagnose(recordings, diag_options, baseline=baseline))}
+    diag_options = DiagnoseOptions(effects=options.effects or tuple(EFFECTS), fit=options.fit)
+    return {"doc": diagnosis_document(diagnose(recordings, diag_options, baseline=result))}

@@ -20,7 +20,8 @@ starts from an identification (:func:`~rattlefit.inference.identify.identify`) a
    and ``drag_torque`` (damped Gauss–Newton on finite differences; the nuisances stay at
    the re-fit's values);
 4. **measures how far the gap shrinks**, out of sample: the χ² of the data rows (band
-   correlations included, the identification's noise model fixed) without the effect and
+   correlations included, the identification's noise model fixed: on the learned likelihood,
+   its covariance at the optimum) without the effect and
    with it, both from the same :attr:`DiagnoseOptions.n_final` fresh realisations (common
    random numbers) that no fit saw, so that points which fit the fit's own few
    realisations by luck do not count. ``gap_closed`` is the share of the excess misfit
@@ -58,11 +59,14 @@ import dataclasses
 import time
 from collections.abc import Callable, Sequence
 
+import jax.numpy as jnp
 import numpy as np
 from scipy import stats
 
 from ..errors import RattlefitError
 from ..inference.identify import identify
+from ..inference.learned import learned_noise
+from ..inference.noise import NoiseModel
 from ..inference.options import FitOptions
 from ..inference.parameters import Z_END
 from ..inference.problem import release_states
@@ -108,8 +112,9 @@ class DiagnoseOptions:
 
     effects : names of the effects to try (:data:`rattlefit.physics.effects.EFFECTS`).
     fit : options of the identification that the diagnosis starts from (its seed seeds the
-        diagnosis too); by default :meth:`FitOptions.optimum_only`, since the diagnosis uses
-        the optimum and its noise model, not the intervals.
+        diagnosis too, its likelihood is the one the diagnosis judges with:
+        :func:`judging_noise`); by default :meth:`FitOptions.optimum_only`, since the
+        diagnosis uses the optimum and its noise model, not the intervals.
     iterations : Gauss–Newton iterations per effect.
     base_iterations : most Gauss–Newton iterations of the re-fit without effects that moves
         the nuisances (with their priors) besides ``a`` and ``drag_torque``; it stops
@@ -212,6 +217,24 @@ def outcome_phrase(o: EffectOutcome) -> str:
     )
 
 
+def judging_noise(baseline: FitResult, problem) -> tuple[NoiseModel, object]:
+    """The noise model the diagnosis judges with, and ``problem`` with its band spread: the
+    identification's own on the synthetic likelihood; on the learned likelihood, the learned
+    density's covariance at the optimum (:func:`~rattlefit.inference.learned.learned_noise`),
+    so that the gap and every candidate are judged with the likelihood the fit was made on.
+    Raises :class:`~rattlefit.errors.RattlefitError` when ``baseline`` holds neither (a fit
+    read back from its JSON)."""
+    if baseline.learned is not None:
+        noise = learned_noise(baseline)
+        return noise, dataclasses.replace(problem, sigma=jnp.asarray(noise.sigma))
+    if baseline.noise is None:
+        raise RattlefitError(
+            "diagnose: the baseline fit carries neither a noise model nor a learned likelihood "
+            "(identify in this process)"
+        )
+    return baseline.noise, problem
+
+
 def trial_of(
     recordings: Sequence[Recording],
     baseline: FitResult,
@@ -223,7 +246,7 @@ def trial_of(
     every effect of ``options``; each with its ``static`` fields), noise model, fresh release
     states for the final comparison and validation states (the fit's covariance count), from
     two children spawned from the fit's seed."""
-    base = baseline.problem_for(recordings)
+    noise, base = judging_noise(baseline, baseline.problem_for(recordings))
     names = options.effects if names is None else names
     problem, candidates = candidate_problem(base, names, static)
     fit_options = baseline.options
@@ -236,7 +259,7 @@ def trial_of(
     nuisances = [i for i, sp in enumerate(base.specs) if sp.log_sd is not None]
     return Trial(
         problem,
-        baseline.noise,
+        noise,
         np.asarray(base.data),
         y0,
         baseline.dof,

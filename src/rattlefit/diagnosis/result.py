@@ -119,6 +119,7 @@ class Diagnosis:
                 "dof": self.baseline.dof,
                 "p_value": self.baseline.p_value,
                 "converged": self.baseline.success,
+                "likelihood": self.baseline.options.likelihood,
                 "parameters": {k: p.as_dict() for k, p in self.baseline.parameters.items()},
             },
             "band_centers_hz": np.asarray(self.band_centers).tolist(),

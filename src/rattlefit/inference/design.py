@@ -9,7 +9,10 @@ spread, floored as in the fit, its correlation shrunk), less the bias that the M
 noise of ``D`` adds to ``DᵀC⁻¹D``. Information from independent recordings adds, so the
 prediction for "this fit plus a candidate" is the sum of the fitted recordings' information,
 the candidate's and the priors'. Each parameter's predicted 95 % interval factor is
-``exp(2 · 1.96 · sd)``, sd from the inverse.
+``exp(2 · 1.96 · sd)``, sd from the inverse. For a fit on the learned likelihood, the fitted
+recordings' information is that likelihood's own (``D`` and ``C`` its learned mean and
+covariance at the optimum), so the "now" row is the learned fit's Fisher prediction; the
+candidates, which nothing was learned for, are simulated.
 
 This is a local, Gaussian prediction at the fitted point: it ranks candidates and says how much
 they could narrow an interval, while the profile intervals of an actual fit are wider where
@@ -22,8 +25,10 @@ import dataclasses
 import math
 from collections.abc import Callable, Sequence
 
+import jax.numpy as jnp
 import numpy as np
 
+from ..errors import RattlefitError
 from ..features.ensemble import chaotic_part, shrunk_correlation
 from ..io.recording import Recording
 from ..physics.geometry import GearGeometry, backlash_from_center_distance
@@ -39,6 +44,9 @@ from .result import FitResult
 DESIGN_REALISATIONS = 24
 #: Log step of the central differences.
 DESIGN_STEP = 0.4
+#: Log step of the central differences of the learned likelihood's mean (smooth and
+#: deterministic, so a small step has no Monte Carlo noise to beat).
+LEARNED_STEP = 0.02
 #: How much longer the "longer run" candidate is.
 LONGER = 10
 #: Centre-distance changes tried, mm.
@@ -140,6 +148,38 @@ def fisher_information(derivatives, deviations, dof: int, log_steps, floor: floa
     return (vector * np.maximum(value, 0.0)) @ vector.T
 
 
+def learned_information(
+    fit: FitResult, problem, recordings: Sequence[Recording], step: float = LEARNED_STEP
+) -> tuple[list[str], np.ndarray]:
+    """The fitted recordings' Fisher information (P, P) per unit log of each parameter of
+    :func:`parameter_names` from ``fit``'s learned likelihood at its optimum:
+    ``Σ_r D_rᵀ C_r⁻¹ D_r``, ``D_r`` the derivative of recording r's learned mean features
+    (central differences over ``step`` in the log), ``C_r`` their learned covariance (the
+    chaotic spread and the variance floor); the films named by lubrication. Raises
+    :class:`~rattlefit.errors.RattlefitError` when ``fit`` holds no learned likelihood."""
+    if fit.learned is None:
+        raise RattlefitError("learned_information: the fit was not made on a learned likelihood")
+    like, z0 = fit.learned.likelihood, np.asarray(fit.z, dtype=float)
+    names = parameter_names(problem)
+    index = {s.name: i for i, s in enumerate(problem.specs)}
+    d = []
+    for name in names:
+        i = index[name]
+        dz = step / float(problem.specs[i].dlog_dz(z0[i]))
+        up, down = z0.copy(), z0.copy()
+        up[i] += dz
+        down[i] -= dz
+        mean_up, mean_down = (np.asarray(like.moments(jnp.asarray(z))[0]) for z in (up, down))
+        d.append((mean_up - mean_down) / (2 * step))
+    d = np.stack(d, axis=-1)  # (R, F, P)
+    cov = np.asarray(like.moments(jnp.asarray(z0))[1])
+    info = sum(d[k].T @ np.linalg.solve(cov[k], d[k]) for k in range(len(d)))
+    lubrication = dict(
+        zip(problem.films, (r.operating.lubrication for r in recordings), strict=True)
+    )
+    return [f"{FILM}[{lubrication[n]}]" if n in lubrication else n for n in names], info
+
+
 def interval_factors(names: Sequence[str], info: np.ndarray) -> dict[str, float]:
     """Predicted 95 % interval factor of each parameter from the total information (P, P):
     ``exp(2 · 1.96 · sd)``; ``inf`` where it has no information or the factor would exceed
@@ -228,12 +268,7 @@ def suggest(
     films = {
         r.operating.lubrication: values[f] for r, f in zip(recordings, problem.films, strict=True)
     }
-    names: list[str] = []
-    now = np.zeros((0, 0))
-    for rec in recordings:
-        say(f"simulating the information of {rec.path} …")
-        more_names, more = film_information(rec, values, films, fit.options, n, rng)
-        names, now = add_information(names, now, more_names, more)
+    names, now = fitted_information(fit, problem, recordings, values, films, n, rng, say)
     rows = [Planned("now", interval_factors(names, now + prior_information(problem, names)))]
     params = fit.rattle_params(0)
     for label, template, changes in candidates(recordings[0]):
@@ -251,6 +286,22 @@ def suggest(
         )
     rows[1:] = sorted(rows[1:], key=lambda r: r.factors.get("drag_torque", math.inf))
     return rows
+
+
+def fitted_information(fit: FitResult, problem, recordings, values, films, n, rng, say):
+    """The fitted recordings' information and its parameters' names: from ``fit``'s learned
+    likelihood when it has one (:func:`learned_information`), else simulated at the fitted
+    ``values`` recording by recording (:func:`film_information`)."""
+    if fit.learned is not None:
+        say("the information of the fitted recordings from their learned likelihood …")
+        return learned_information(fit, problem, recordings)
+    names: list[str] = []
+    now = np.zeros((0, 0))
+    for rec in recordings:
+        say(f"simulating the information of {rec.path} …")
+        more_names, more = film_information(rec, values, films, fit.options, n, rng)
+        names, now = add_information(names, now, more_names, more)
+    return names, now
 
 
 def plan_document(rows: Sequence[Planned], *, seed: int, realisations: int) -> dict:

@@ -29,6 +29,7 @@ from ..quantities import FILM, base_name
 from ..reproducibility import platform_info
 from ..util import stamped
 from .group import flanks, group_films, group_spec
+from .noise import NoiseModel
 from .options import FitOptions
 from .problem import Problem, problem_from
 from .result import FitResult, ParameterEstimate, estimate, estimates_of, with_groups
@@ -159,6 +160,37 @@ def learned_result(
         profiles={**profiles_of(problem, fit), **groups[1]},
         likelihood=info,
         learned=learned,
+    )
+
+
+def learned_noise(fit: FitResult) -> NoiseModel:
+    """The noise model of ``fit``, a fit on the learned likelihood, at its optimum: each
+    feature's spread and the features' correlation from the learned density's covariance
+    there (the recordings' whitening block-diagonal, since recordings are independent), each
+    spread widened by the Monte Carlo error of a mean of ``fit.options.n_realisations``
+    realisations, as the synthetic likelihood's is. No Birge inflation (``row_scale`` one):
+    the learned density's spread is checked against fresh simulations instead
+    (:mod:`rattlefit.likelihood.check`). ``sigma_dof`` is the simulations it was learned
+    from per recording. Raises :class:`~rattlefit.errors.RattlefitError` when ``fit`` holds
+    no learned likelihood."""
+    if fit.learned is None:
+        raise RattlefitError("learned_noise: the fit was not made on a learned likelihood")
+    _, cov = (np.asarray(x) for x in fit.learned.likelihood.moments(jnp.asarray(fit.z)))
+    n_rec, n_feat = cov.shape[:2]
+    widen = 1.0 + 1.0 / fit.options.n_realisations
+    sigma = np.sqrt(np.diagonal(cov, axis1=1, axis2=2) * widen)
+    whiten = np.zeros((n_rec * n_feat, n_rec * n_feat))
+    for k in range(n_rec):
+        sd = np.sqrt(np.diag(cov[k]))
+        corr = cov[k] / np.outer(sd, sd) + 1e-9 * np.eye(n_feat)
+        sl = slice(k * n_feat, (k + 1) * n_feat)
+        whiten[sl, sl] = np.linalg.inv(np.linalg.cholesky(corr))
+    return NoiseModel(
+        sigma,
+        whiten,
+        np.ones(n_rec * n_feat),
+        np.asarray(fit.chi2_recordings, dtype=float),
+        int(fit.learned.design.u.shape[0]),
     )
 
 
