@@ -46,7 +46,7 @@ def timed_diagnosis(path: str) -> dict:
     wall = time.perf_counter() - t0
     return {
         "total_s": round(wall, 1),
-        "identify_s": round(diag.baseline.wall_time, 1),
+        "identify_s": round(diag.baseline.provenance.wall_time, 1),
         "per_effect_s": {o.name: round(o.wall_time, 1) for o in diag.outcomes},
         "gap_chi2": round(diag.gap_chi2[0], 2),
         "dof": diag.gap_chi2[1],

@@ -503,9 +503,11 @@ def forward_result(res: dict) -> dict:
 
     per_point = []
     for name in res["names"]:
-        ref, fwd, mt = res["reference"]["points"][name], res["forward"]["points"][name], res[
-            "match"
-        ][name]
+        ref, fwd, mt = (
+            res["reference"]["points"][name],
+            res["forward"]["points"][name],
+            res["match"][name],
+        )
         rt = mt["rtol"]
         per_point.append({
             "point": short(name),

@@ -502,7 +502,7 @@ def step_identify(args):
     reported in the results, not raised)."""
     _, result, wall = timed_identify(args["file"])
     params = {}
-    for k, v in result.parameters.items():
+    for k, v in result.estimates.parameters.items():
         params[k] = {
             "estimate": v.estimate,
             "lower": v.lower,
@@ -512,10 +512,10 @@ def step_identify(args):
         }
     return {
         "wall_s": wall,
-        "success": bool(result.success),
-        "message": str(result.message),
-        "chi2": float(result.chi2),
-        "dof": int(result.dof),
+        "success": bool(result.statistics.success),
+        "message": str(result.statistics.message),
+        "chi2": float(result.statistics.chi2),
+        "dof": int(result.statistics.dof),
         "parameters": params,
     }
 
@@ -565,9 +565,9 @@ def step_diagnose(args):
     wall = time.perf_counter() - t0
     return {
         "wall_s": wall,
-        "identify_s": diag.baseline.wall_time,
-        "chi2": diag.baseline.chi2,
-        "dof": diag.baseline.dof,
+        "identify_s": diag.baseline.provenance.wall_time,
+        "chi2": diag.baseline.statistics.chi2,
+        "dof": diag.baseline.statistics.dof,
         "gap_chi2": diag.gap_chi2[0],
         "verdict": diag.verdict.label,
         "sentence": verdict_sentence(diag),

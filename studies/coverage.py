@@ -212,16 +212,16 @@ def main() -> None:
             "case": f"pair {pair}, {lub}, {cd} mm, {pct} %, {f:g} Hz",
             "seed": seed,
             "wall_s": time.perf_counter() - t0,
-            "chi2": res.chi2,
-            "dof": res.dof,
-            "poor_fit": res.poor_fit,
+            "chi2": res.statistics.chi2,
+            "dof": res.statistics.dof,
+            "poor_fit": res.statistics.poor_fit,
         }
         for name, value in truth.items():
             row[name] = interval_row(
-                res.parameters[film if name == "film_half_length" else name], value
+                res.estimates.parameters[film if name == "film_half_length" else name], value
             )
         if args.companion:
-            c = interval_row(res.parameters[film_c], a_c)
+            c = interval_row(res.estimates.parameters[film_c], a_c)
             row["a_companion"] = {k: c[k] for k in ("truth", "lower", "upper", "covered")}
         a_est = row["film_half_length"]
         row["a_within_20pct"] = (
@@ -232,9 +232,11 @@ def main() -> None:
         ident = "a identified" if a_est["identified"] else "a not identified"
         if args.companion:
             ident += f"; companion a:{'IN' if row['a_companion']['covered'] else 'OUT'}"
+        st = res.statistics
+        poor = " (flagged poor fit)" if st.poor_fit else ""
         print(
             f"[{n + 1}/{len(picks)}] {row['case']} (seed {seed}): {cov}; {ident}; "
-            f"χ²={res.chi2:.0f}/{res.dof}{' (flagged poor fit)' if res.poor_fit else ''}; "
+            f"χ²={st.chi2:.0f}/{st.dof}{poor}; "
             f"{row['wall_s']:.0f} s",
             flush=True,
         )

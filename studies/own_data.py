@@ -62,20 +62,22 @@ def row(name: str, result, truths: dict, wall: float, seed: int) -> dict:
     params = {
         k: {
             "truth": v,
-            "lower": result.parameters[k].lower,
-            "upper": result.parameters[k].upper,
-            "estimate": result.parameters[k].estimate,
-            "holds": bool(result.parameters[k].lower <= v <= result.parameters[k].upper),
+            "lower": result.estimates.parameters[k].lower,
+            "upper": result.estimates.parameters[k].upper,
+            "estimate": result.estimates.parameters[k].estimate,
+            "holds": bool(
+                result.estimates.parameters[k].lower <= v <= result.estimates.parameters[k].upper
+            ),
         }
         for k, v in truths.items()
     }
     return {
         "fit": name,
         "seed": seed,
-        "chi2": result.chi2,
-        "dof": result.dof,
-        "p_value": result.p_value,
-        "check_passed": result.likelihood.get("check_passed"),
+        "chi2": result.statistics.chi2,
+        "dof": result.statistics.dof,
+        "p_value": result.statistics.p_value,
+        "check_passed": result.provenance.likelihood.get("check_passed"),
         "wall_s": wall,
         "parameters": params,
     }

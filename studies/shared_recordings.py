@@ -57,16 +57,18 @@ def main() -> None:
         )
         t = truth[name]
         params = {
-            "film_half_length": entry(res.parameters["film_half_length"], t["a_mm"] * 1e-3),
-            "drag_torque": entry(res.parameters["drag_torque"], t["drag_torque_Nm"]),
-            "viscosity": entry(res.parameters["viscosity"], t["viscosity_Pa_s"]),
+            "film_half_length": entry(
+                res.estimates.parameters["film_half_length"], t["a_mm"] * 1e-3
+            ),
+            "drag_torque": entry(res.estimates.parameters["drag_torque"], t["drag_torque_Nm"]),
+            "viscosity": entry(res.estimates.parameters["viscosity"], t["viscosity_Pa_s"]),
         }
         r = {
             "recording": name,
-            "chi2": res.chi2,
-            "dof": res.dof,
-            "p_value": res.p_value,
-            "check_passed": res.likelihood["check_passed"],
+            "chi2": res.statistics.chi2,
+            "dof": res.statistics.dof,
+            "p_value": res.statistics.p_value,
+            "check_passed": res.provenance.likelihood["check_passed"],
             "wall_s": time.perf_counter() - t0,
             "parameters": params,
         }

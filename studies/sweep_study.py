@@ -78,7 +78,7 @@ def study_sweep(args, overrides, n, cds, sweep, truth, seeds, fit_seed) -> dict:
         "profile_threshold": [f.profile.get("threshold") for f in fits],
     }
     for name, value in truth.items():
-        js, ss = joint.parameters[name], [s.parameters[name] for s in singles]
+        js, ss = joint.estimates.parameters[name], [s.estimates.parameters[name] for s in singles]
         w_single = [log_width(q) for q in ss]
         row[name] = {
             "truth": value,

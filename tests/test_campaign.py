@@ -37,7 +37,8 @@ from rattlefit.errors import RattlefitError
 from rattlefit.inference.options import FitOptions
 
 #: The campaign: gear pair II, dry, boundary and oil jet, at two centre distances, at the
-#: paper's strongest setting (20 % at 16 Hz), 1 s each; recording i seeded with SEED + i.
+#: paper's strongest setting (20 % at 16 Hz), 1 s each; recording i seeded by the i-th child
+#: spawned from SEED.
 GRID = CampaignGrid(
     pairs=("II",),
     center_distances_mm=(65.6, 66.0),

@@ -102,7 +102,10 @@ def _problem(recordings, options=None):
 
 
 def _covered(result, truth):
-    return {k: result.parameters[k].lower <= truth[k] <= result.parameters[k].upper for k in truth}
+    return {
+        k: result.estimates.parameters[k].lower <= truth[k] <= result.estimates.parameters[k].upper
+        for k in truth
+    }
 
 
 @pytest.fixture(scope="module")
@@ -144,14 +147,16 @@ def test_an_oil_jet_companion_identifies_the_boundary_film(mild_recording):
     }
     del truth["film_half_length"]
     assert not _misses(result, truth), ("(lower, truth, upper):", _misses(result, truth))
-    a = result.parameters["film_half_length[boundary]"]
+    a = result.estimates.parameters["film_half_length[boundary]"]
     # the companion narrows a[boundary] to a two-sided interval …
     assert a.bound in (None, "interval") and a.upper / a.lower < COMPANION_WIDTH, a
     # … and where a is reported identified (a factor ≤ IDENTIFIED_RATIO), the
     # estimate lands within ESTIMATE_TOLERANCE of the truth
     if a.identified:
         assert abs(a.estimate / truth["film_half_length[boundary]"] - 1) < ESTIMATE_TOLERANCE, a
-    assert result.parameters["film_half_length[oil_jet]"].bound == "lower"  # saturated: a bound
+    assert (
+        result.estimates.parameters["film_half_length[oil_jet]"].bound == "lower"
+    )  # saturated: a bound
     doc = result.to_json()
     assert list(doc["parameters"])[:4] == [
         "film_half_length[boundary]",
@@ -166,7 +171,7 @@ def test_mild_rattle_tells_the_film_from_dry_flanks(mild_recording):
     rec, truth = mild_recording
     result = identify([rec], FitOptions(seed=FIT_SEED))
     assert not _misses(result, truth), ("(lower, truth, upper):", _misses(result, truth))
-    a = result.parameters["film_half_length"]
+    a = result.estimates.parameters["film_half_length"]
     # in mild rattle the data bound the film from below: a film of 10 µm takes (10/85)³ of the
     # true film's momentum sink ∫S dh ≈ 4μZa³/h_min², as good as dry, and a dry recording's
     # interval reaches 0 (test_dry_flanks_are_not_given_a_film). From above only the viscosity
@@ -202,11 +207,11 @@ def test_dry_flanks_are_not_given_a_film():
     p = rf.RattleParams(0.0, 0.03, 0.4942, g.backlash)
     rec, _ = synthesize(g, op, p, seed=DRY_SEED)
     result = identify([rec], FitOptions(seed=DRY_SEED))
-    a = result.parameters["film_half_length"]
+    a = result.estimates.parameters["film_half_length"]
     assert a.lower < DRY_FILM and not a.identified, a
     assert a.upper < OIL_JET_FILM, a
     truth = {k: v for k, v in _truth_of(p).items() if k != "film_half_length"}
-    assert all(_covered(result, truth).values()), result.parameters
+    assert all(_covered(result, truth).values()), result.estimates.parameters
 
 
 @pytest.mark.slow  # eight fits: two fit seeds × (three singles and the joint)
@@ -229,15 +234,15 @@ def test_joint_fit_of_a_backlash_sweep_tightens_the_drag_torque_on_average():
     truth = _truth_of(sweep[0][1])
 
     def width(result, name):
-        q = result.parameters[name]
+        q = result.estimates.parameters[name]
         return np.log(q.upper / q.lower) if q.lower > 0 else np.inf
 
     widths = []  # per fit seed: the singles' T_b widths, then the joint one's
     for seed in JOINT_FIT_SEEDS:
         singles = [identify([r], FitOptions(seed=seed)) for r in recs]
         joint = identify(recs, FitOptions(seed=seed))
-        assert all(_covered(joint, truth).values()), (seed, joint.parameters)
-        assert {f"backlash[{i}]" for i in range(len(recs))} <= set(joint.parameters)
+        assert all(_covered(joint, truth).values()), (seed, joint.estimates.parameters)
+        assert {f"backlash[{i}]" for i in range(len(recs))} <= set(joint.estimates.parameters)
         widths.append([width(f, "drag_torque") for f in (*singles, joint)])
     mean = np.mean(widths, axis=0)
     assert mean[-1] < np.min(mean[:-1]), widths
@@ -260,7 +265,7 @@ SHARED_CASES = [
 
 def _misses(result, truth):
     return {
-        k: (result.parameters[k].lower, truth[k], result.parameters[k].upper)
+        k: (result.estimates.parameters[k].lower, truth[k], result.estimates.parameters[k].upper)
         for k, ok in _covered(result, truth).items()
         if not ok
     }

@@ -114,9 +114,12 @@ def test_with_the_nuisances_known_the_groups_interval_is_the_films_carried_throu
         seed=0, priors=priors, profile_bisections=4, profile_rounds=1, profile_roughness=False
     )
     result = rf.identify([rec], options)
-    a, g = result.parameters["film_half_length"], result.parameters["squeeze_momentum"]
-    mp = result.map_params[0]
-    problem = result.problem
+    a, g = (
+        result.estimates.parameters["film_half_length"],
+        result.estimates.parameters["squeeze_momentum"],
+    )
+    mp = result.estimates.map_params[0]
+    problem = result.state.problem
     radius, width = (
         float(problem.models.curvature_radius[0]),
         float(problem.models.axial_width[0]),
@@ -129,5 +132,5 @@ def test_with_the_nuisances_known_the_groups_interval_is_the_films_carried_throu
     assert a.lower > 0 and g.lower > 0 and a.bound != "lower" and g.bound != "lower", (a, g)
     ratio = math.log(g.upper / g.lower) / math.log(momentum(a.upper) / momentum(a.lower))
     assert 0.8 < ratio < 1.2, (ratio, a, g)
-    assert list(result.parameters)[3] == "squeeze_momentum"
+    assert list(result.estimates.parameters)[3] == "squeeze_momentum"
     assert result.to_json()["parameters"]["squeeze_momentum"]["unit"] == "N s"

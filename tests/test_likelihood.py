@@ -204,13 +204,13 @@ def learned_fit():
 
 def test_the_design_starts_inside_the_prior_box(learned_fit):
     _, result, _ = learned_fit
-    learned, problem = result.learned, result.problem
+    learned, problem = result.state.learned, result.state.problem
     lo, hi = prior_box(problem)
-    first = learned.design.u[: result.likelihood["rounds"][0]["simulations"]]
+    first = learned.design.u[: result.provenance.likelihood["rounds"][0]["simulations"]]
     assert np.all(first >= lo) and np.all(first <= hi)
-    n = sum(r["simulations"] for r in result.likelihood["rounds"])
+    n = sum(r["simulations"] for r in result.provenance.likelihood["rounds"])
     assert learned.design.features.shape == (1, n, problem.data.shape[1])
-    assert all(r["simulations_per_s_per_core"] > 0 for r in result.likelihood["rounds"])
+    assert all(r["simulations_per_s_per_core"] > 0 for r in result.provenance.likelihood["rounds"])
     again = sobol_design(8, lo, hi, np.random.SeedSequence(0))
     np.testing.assert_array_equal(again, sobol_design(8, lo, hi, np.random.SeedSequence(0)))
 
@@ -221,16 +221,16 @@ CHI2_999 = 10.83
 
 def profile_cost_at(result, name: str, value: float) -> float:
     """The profile's Δcost at ``value``, interpolated in the log (the end point's beyond)."""
-    prof = np.asarray(sorted(result.profiles[name]))
+    prof = np.asarray(sorted(result.estimates.profiles[name]))
     return float(np.interp(np.log(value), np.log(prof[:, 0]), prof[:, 1]))
 
 
 def test_the_learned_profiles_hold_rattlefits_own_truth(learned_fit):
     _, result, truth = learned_fit
-    assert result.p_value > 1e-3  # its own data are explained
-    assert result.success
-    _, radius, width = flanks(result.problem, "film_half_length")
-    mu0 = float(result.problem.viscosities[0])
+    assert result.statistics.p_value > 1e-3  # its own data are explained
+    assert result.statistics.success
+    _, radius, width = flanks(result.state.problem, "film_half_length")
+    mu0 = float(result.state.problem.viscosities[0])
     true = {
         "film_half_length": truth["film_half_length"],
         "drag_torque": truth["drag_torque"],
@@ -244,18 +244,21 @@ def test_the_learned_profiles_hold_rattlefits_own_truth(learned_fit):
     # each truth's profile cost is within χ²₁'s 99.9 % quantile of the optimum's: a margin
     # that a calibrated likelihood misses once in a thousand fits, and a biased one often
     for name, value in true.items():
-        assert profile_cost_at(result, name, value) < CHI2_999, (name, result.profiles[name])
+        assert profile_cost_at(result, name, value) < CHI2_999, (
+            name,
+            result.estimates.profiles[name],
+        )
     # a 3 s boundary recording bounds the drag torque on both sides under this likelihood
-    assert result.parameters["drag_torque"].bound != "upper"
-    assert result.parameters["drag_torque"].lower > 0
-    for name, prof in result.profiles.items():  # no profile point below the optimum
+    assert result.estimates.parameters["drag_torque"].bound != "upper"
+    assert result.estimates.parameters["drag_torque"].lower > 0
+    for name, prof in result.estimates.profiles.items():  # no profile point below the optimum
         assert min(d for _, d in prof) > -1e-3, name
-    assert result.profile["threshold"] == pytest.approx(CHI2_95)
+    assert result.estimates.profile["threshold"] == pytest.approx(CHI2_95)
 
 
 def test_the_learned_likelihood_is_checked_against_fresh_simulations(learned_fit):
     _, result, _ = learned_fit
-    checks = result.likelihood["check"]
+    checks = result.provenance.likelihood["check"]
     labels = {c["label"] for c in checks}
     assert {
         "optimum",
@@ -298,14 +301,14 @@ def test_the_learned_noise_model_holds_the_simulators_spread(learned_fit):
     # come in the fit's covariance count), the floor and the Monte Carlo error of a mean of
     # n_realisations added as the synthetic likelihood adds them
     _, result, _ = learned_fit
-    noise, problem = judging_noise(result, result.problem)
+    noise, problem = judging_noise(result, result.state.problem)
     rng = np.random.default_rng(5)
-    n = result.options.n_covariance_realisations
+    n = result.state.options.n_covariance_realisations
     ens = np.concatenate(
-        [np.asarray(ensemble_features(problem, result.z, n, rng)) for _ in range(48 // n)], 1
+        [np.asarray(ensemble_features(problem, result.state.z, n, rng)) for _ in range(48 // n)], 1
     )
-    var = ens.var(axis=1, ddof=1) + result.options.sigma_floor**2
-    reference = np.sqrt(var * (1 + 1 / result.options.n_realisations))
+    var = ens.var(axis=1, ddof=1) + result.state.options.sigma_floor**2
+    reference = np.sqrt(var * (1 + 1 / result.state.options.n_realisations))
     log_ratio = np.log(noise.sigma / reference)
     # about 0.25 at the quick budget: the flow widens the bands its floor dominates
     assert np.sqrt(np.mean(log_ratio**2)) < 0.4, np.round(np.exp(log_ratio), 2)
@@ -319,7 +322,9 @@ TRIED = ("runout", "tooth_errors", "flank_friction")
 
 def test_diagnose_judges_rattlefits_own_clean_recording_on_the_learned_likelihood(learned_fit):
     rec, result, _ = learned_fit
-    diag = diagnose([rec], DiagnoseOptions(effects=TRIED, fit=result.options), baseline=result)
+    diag = diagnose(
+        [rec], DiagnoseOptions(effects=TRIED, fit=result.state.options), baseline=result
+    )
     doc = diag.to_json()
     assert doc["baseline"]["likelihood"] == "learned"
     assert diag.verdict.kind == "none", rf.report.verdict_sentence(diag)
@@ -331,17 +336,19 @@ def test_suggest_predicts_the_learned_fits_own_width_and_the_simulators(learned_
     # information; it must predict the learned fit's Laplace width, and agree with the
     # information estimated from the exact simulator's realisations at the same point
     rec, result, _ = learned_fit
-    problem = result.problem
+    problem = result.state.problem
     names, info = learned_information(result, problem, [rec])
     learned = interval_factors(names, info + prior_information(problem, names))
-    values = {s.name: float(s.value(result.z[i])) for i, s in enumerate(problem.specs)}
+    values = {s.name: float(s.value(result.state.z[i])) for i, s in enumerate(problem.specs)}
     sim_names, sim_info = recording_information(
-        rec, values, result.options, n=24, rng=np.random.default_rng(3)
+        rec, values, result.state.options, n=24, rng=np.random.default_rng(3)
     )
     simulated = interval_factors(sim_names, sim_info + prior_information(problem, sim_names))
     for name in ("film_half_length", "drag_torque"):
         i = problem.index(name)
-        sd = math.sqrt(result.covariance_z[i, i]) * float(problem.specs[i].dlog_dz(result.z[i]))
+        sd = math.sqrt(result.state.covariance_z[i, i]) * float(
+            problem.specs[i].dlog_dz(result.state.z[i])
+        )
         laplace = 2 * 1.96 * sd
         label = {"film_half_length": "film_half_length[boundary]"}.get(name, name)
         width = math.log(learned[label])
@@ -351,7 +358,7 @@ def test_suggest_predicts_the_learned_fits_own_width_and_the_simulators(learned_
 
 def test_a_stored_likelihood_is_reused_and_refused_for_another_test_point(learned_fit, tmp_path):
     rec, result, _ = learned_fit
-    learned = result.learned
+    learned = result.state.learned
     path = write_learned(
         tmp_path / "l.h5",
         learned.likelihood,
@@ -360,8 +367,8 @@ def test_a_stored_likelihood_is_reused_and_refused_for_another_test_point(learne
         seed=learned.seed,
         options=learned.options,
     )
-    stored = read_learned(path, result.problem)
-    z = jnp.asarray(result.z)
+    stored = read_learned(path, result.state.problem)
+    z = jnp.asarray(result.state.z)
     assert float(stored.likelihood.cost(z)) == float(learned.likelihood.cost(z))
     np.testing.assert_array_equal(stored.design.u, learned.design.u)
     other, _, _ = problem_from(
@@ -372,8 +379,8 @@ def test_a_stored_likelihood_is_reused_and_refused_for_another_test_point(learne
     reused = rf.identify(
         [rec], rf.FitOptions.quick(seed=0, likelihood="learned", reuse_likelihood=str(path))
     )
-    assert reused.likelihood["reused"] == str(path)
-    assert reused.likelihood["simulations_per_recording"] >= learned.design.u.shape[0]
+    assert reused.provenance.likelihood["reused"] == str(path)
+    assert reused.provenance.likelihood["simulations_per_recording"] >= learned.design.u.shape[0]
 
 
 TINY = dict(
@@ -394,7 +401,7 @@ import rattlefit as rf
 rf.configure(cpu_cores=int(sys.argv[1]), compilation_cache=True)  # the test run's cache
 opts = rf.FitOptions.quick(seed=3, **json.loads(sys.argv[2]))
 res = rf.identify([rf.read_recording(sys.argv[3])], opts)
-print(json.dumps({k: [p.estimate, p.lower, p.upper] for k, p in res.parameters.items()}))
+print(json.dumps({k: [p.estimate, p.lower, p.upper] for k, p in res.estimates.parameters.items()}))
 """
 
 

@@ -110,7 +110,10 @@ def locked_point():
     g = rf.table2_pair("II", center_distance_mm=65.6)
     op = OperatingPoint("boundary", 20.0, MEAN_SPEED, 0.2 * MEAN_SPEED, MEAN_SPEED / (2 * np.pi))
     params = rf.RattleParams(0.085e-3, 0.025, 0.4942, g.backlash)
-    fitted = types.SimpleNamespace(options=rf.FitOptions(), rattle_params=lambda k: params)
+    fitted = types.SimpleNamespace(
+        state=types.SimpleNamespace(options=rf.FitOptions()),
+        estimates=types.SimpleNamespace(rattle_params=lambda k: params),
+    )
     return g, op, params, fitted
 
 
@@ -156,7 +159,10 @@ def test_the_bundled_boundary_recordings_tooth_finding_is_covered_by_the_null():
     params = rf.RattleParams(
         truth["film_half_length"], truth["drag_torque"], truth["viscosity"], truth["backlash"]
     )
-    fitted = types.SimpleNamespace(options=rf.FitOptions(), rattle_params=lambda k: params)
+    fitted = types.SimpleNamespace(
+        state=types.SimpleNamespace(options=rf.FitOptions()),
+        estimates=types.SimpleNamespace(rattle_params=lambda k: params),
+    )
     found = findings([rec], 0.01)
     (tooth,) = [f for f in found if f.test.name == "tooth.secondary"]
     assert tooth.significant  # what the decoys alone conclude

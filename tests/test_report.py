@@ -13,44 +13,59 @@ import pytest
 
 from rattlefit import FitOptions, FitResult
 from rattlefit.inference.profile import profile_threshold
-from rattlefit.inference.result import ParameterEstimate
+from rattlefit.inference.result import (
+    Estimates,
+    FittedState,
+    ParameterEstimate,
+    Provenance,
+    Spectra,
+    Statistics,
+)
 from rattlefit.report import format_table
 
 
-def _result(chi2, dof, chi2_recordings=(), recordings=(), regime_share=(), profile=None):
+def _result(
+    chi2,
+    dof,
+    chi2_recordings=(),
+    recordings=(),
+    regime_share=(),
+    profile=None,
+    *,
+    success=True,
+    profiles=None,
+):
     a = ParameterEstimate("film_half_length", "m", 8.5e-5, 6e-5, 1.1e-4, True)
     tb = ParameterEstimate("drag_torque", "N m", 0.02, 0.0, 0.05, False, "upper")
     mu = ParameterEstimate("viscosity", "Pa s", 0.45, 0.3, 0.6, False, "interval")
     return FitResult(
-        parameters={"film_half_length": a, "drag_torque": tb, "viscosity": mu},
-        correlation=np.eye(3),
-        names=["film_half_length", "drag_torque", "viscosity"],
-        chi2=chi2,
-        dof=dof,
-        n_iterations=3,
-        success=True,
-        message="converged",
-        seed=7,
-        wall_time=1.0,
-        recordings=list(recordings),
-        options=FitOptions(),
-        z=np.zeros(3),
-        covariance_z=np.eye(3),
-        measured_features=[],
-        fitted_features=[],
-        sigma=[],
-        band_centers=np.zeros(1),
-        map_params=[],
-        chi2_recordings=list(chi2_recordings),
-        regime_share=list(regime_share),
-        profile=profile or {},
+        Estimates(
+            parameters={"film_half_length": a, "drag_torque": tb, "viscosity": mu},
+            names=["film_half_length", "drag_torque", "viscosity"],
+            correlation=np.eye(3),
+            map_params=[],
+            profile=profile or {},
+            profiles=profiles or {},
+        ),
+        Statistics(
+            chi2=chi2,
+            dof=dof,
+            chi2_recordings=list(chi2_recordings),
+            regime_share=list(regime_share),
+            n_iterations=3,
+            success=success,
+            message="converged",
+        ),
+        Spectra(measured=[], fitted=[], sigma=[], band_centers=np.zeros(1)),
+        Provenance(recordings=list(recordings), seed=7, wall_time=1.0),
+        FittedState(FitOptions(), np.zeros(3), np.eye(3)),
     )
 
 
 def test_p_value_is_the_chi2_tail():
     # with two degrees of freedom the χ² tail is exp(−χ²/2) in closed form
-    assert _result(3.0, 2).p_value == pytest.approx(math.exp(-1.5), rel=1e-12)
-    assert _result(20.0, 2).p_value == pytest.approx(math.exp(-10.0), rel=1e-12)
+    assert _result(3.0, 2).statistics.p_value == pytest.approx(math.exp(-1.5), rel=1e-12)
+    assert _result(20.0, 2).statistics.p_value == pytest.approx(math.exp(-10.0), rel=1e-12)
 
 
 def test_table_warns_only_about_a_poor_fit():
@@ -61,7 +76,7 @@ def test_table_warns_only_about_a_poor_fit():
     # two-sided but wider than an identified interval: how much wider is said
     assert "[0.3, 0.6]" in good and "interval too wide (×2.00 > ×1.5)" in good
     bad = _result(120.0, 28)
-    assert bad.poor_fit and bad.to_json()["fit"]["poor_fit"] is True
+    assert bad.statistics.poor_fit and bad.to_json()["fit"]["poor_fit"] is True
     text = format_table(bad)
     assert "warning: χ² is far above its 28 degrees of freedom" in text
     assert "√(χ²/dof) = 2.1" in text
@@ -69,15 +84,15 @@ def test_table_warns_only_about_a_poor_fit():
 
 def test_the_table_states_the_search_state_and_p():
     # p from the χ² tail in closed form (two dof: exp(−χ²/2)); the stop as the search ended
-    done = format_table(dataclasses.replace(_result(3.0, 2), dof=2))
+    done = format_table(_result(3.0, 2))
     assert f"p = {math.exp(-1.5):.2g}" in done and "converged after 3 steps" in done
-    stopped = format_table(dataclasses.replace(_result(3.0, 2), success=False))
+    stopped = format_table(_result(3.0, 2, success=False))
     assert "stopped at its step limit after 3 steps" in stopped
     assert "converged" not in stopped
     assert "below the optimum" not in done
     low = {"drag_torque": [(0.01, 5.0), (0.02, 0.0), (0.03, -14.2)]}
     assert "the profiles reach 14.2 below the optimum's cost" in format_table(
-        dataclasses.replace(_result(3.0, 2), profiles=low)
+        _result(3.0, 2, profiles=low)
     )
 
 
@@ -86,12 +101,13 @@ def test_the_table_shows_the_physics_first_and_a_measured_nuisance_as_measured()
     params = {
         "backlash[0]": ParameterEstimate("backlash[0]", "m", 8e-4, 7.9e-4, 8.1e-4, False, "prior"),
         "min_film": ParameterEstimate("min_film", "m", 2e-6, 5e-7, 8e-6, False, "prior"),
-        **res.parameters,
+        **res.estimates.parameters,
         "squeeze_momentum": ParameterEstimate(
             "squeeze_momentum", "N s", 1e-3, 5e-4, 2e-3, False, "interval"
         ),
     }
-    text = format_table(dataclasses.replace(res, parameters=params))
+    estimates = dataclasses.replace(res.estimates, parameters=params)
+    text = format_table(dataclasses.replace(res, estimates=estimates))
     order = [line.split()[0] for line in text.splitlines()[2:8]]
     assert order == [
         "film_half_length",
@@ -111,18 +127,18 @@ def test_a_joint_fit_names_the_recording_the_model_does_not_explain():
     # 57 dof over two recordings: 28.5 each. 30 is an ordinary χ² on 28.5 (p ≈ 0.4), 400 is not
     files = ["/data/pairII_boundary_65.6.h5", "/data/pairII_oiljet_65.6.h5"]
     bad = _result(430.0, 57, chi2_recordings=[30.0, 400.0], recordings=files)
-    assert bad.poorly_fitted == [1]
+    assert bad.statistics.poorly_fitted == [1]
     assert bad.to_json()["fit"]["poorly_fitted_recordings"] == [files[1]]
     text = format_table(bad)
     assert "does not explain pairII_oiljet_65.6.h5 within" in text
     assert "each recording's own √(χ²/dof)" in text and "boundary" not in text
     # both merely mediocre, poor only together: no single file is blamed
     both = _result(100.0, 57, chi2_recordings=[50.0, 50.0], recordings=files)
-    assert both.poor_fit and both.poorly_fitted == []
+    assert both.statistics.poor_fit and both.statistics.poorly_fitted == []
     assert "does not explain these recordings together" in format_table(both)
     # recordings made in memory (rf.synthesize) have no file: named by their place
     memory = _result(430.0, 57, chi2_recordings=[30.0, 400.0], recordings=["None", "None"])
-    assert memory.recording_names == ["recording 1", "recording 2"]
+    assert memory.provenance.recording_names == ["recording 1", "recording 2"]
     assert "does not explain recording 2 within" in format_table(memory)
 
 

@@ -20,6 +20,7 @@ from .errors import ParameterError, RattlefitError, RecordingError, SolverError
 from .inference import (
     FitOptions,
     FitResult,
+    FittedState,
     Posterior,
     SampleOptions,
     identify,
@@ -51,6 +52,7 @@ __all__ = [
     "Effect",
     "FitOptions",
     "FitResult",
+    "FittedState",
     "GearGeometry",
     "ParameterError",
     "Posterior",

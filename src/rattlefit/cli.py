@@ -153,11 +153,11 @@ def _likelihood(method: str, reuse: Path | None) -> dict:
 
 def _write_learned(result, output: Path | None, doc: dict) -> None:
     """Store a learned likelihood beside the JSON (X.json → X.likelihood.h5)."""
-    if output is None or result.learned is None:
+    if output is None or result.state.learned is None:
         return
     from .likelihood.store import write_learned
 
-    learned = result.learned
+    learned = result.state.learned
     path = output.with_suffix(".likelihood.h5")
     write_learned(
         path,
@@ -994,7 +994,13 @@ def campaign_run(**o) -> None:
     help="Recordings per test point.",
 )
 @click.option("--duration", type=float, default=3.0, show_default=True, help="Length, s (≥ 1).")
-@click.option("--seed", type=int, default=0, show_default=True, help="Recording i: seed + i.")
+@click.option(
+    "--seed",
+    type=int,
+    default=0,
+    show_default=True,
+    help="Recording i: the i-th child spawned from this seed.",
+)
 @click.option(
     "--joint",
     type=click.Choice(["none", "sweeps", "companions"]),

@@ -17,6 +17,8 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import RattlefitError
 from ..io.recording import OperatingPoint, read_truth, write_recording
 from ..physics.geometry import TABLE2, table2_pair
@@ -179,7 +181,8 @@ def simulate_campaign(
 ) -> Path:
     """Simulate ``grid``'s recordings (default: the paper's 180) into ``directory`` with
     ``truth`` (default :class:`SyntheticTruth`), ``duration`` seconds each, recording ``i``
-    seeded with ``seed + i``, and write ``manifest.csv`` beside them, grouped by ``joint``
+    seeded by the ``i``-th child spawned from ``seed`` (:func:`recording_seed`), and write
+    ``manifest.csv`` beside them, grouped by ``joint``
     (:func:`group_of`); returns the manifest's path. A recording already there with the
     same truth and seed is kept (a repeated call simulates only what is missing). Raises
     :class:`~rattlefit.errors.RattlefitError` for an unknown ``joint`` or a duration under
@@ -195,15 +198,22 @@ def simulate_campaign(
     say = progress or (lambda msg: None)
     rows = []
     points = grid.points()
+    children = np.random.SeedSequence(seed).spawn(len(points))
     for i, point in enumerate(points):
         path = directory / recording_name(point)
         rows.append((str(path), group_of(point, joint, grid)))
-        if same_recording(path, seed + i, truth, point, duration):
+        point_seed = recording_seed(children[i])
+        if same_recording(path, point_seed, truth, point, duration):
             continue
         say(f"[{i + 1}/{len(points)}] simulating {path.name}")
-        rec, known = synthesize_point(point, truth, duration=duration, seed=seed + i)
+        rec, known = synthesize_point(point, truth, duration=duration, seed=point_seed)
         write_recording(rec, path, extra_attrs=known)
     return write_manifest(directory / "manifest.csv", rows)
+
+
+def recording_seed(child: np.random.SeedSequence) -> int:
+    """The integer seed (< 2³¹) of one recording from its spawned ``child``."""
+    return int(child.generate_state(1)[0] >> 1)
 
 
 def synthesize_point(point: dict, truth: SyntheticTruth, *, duration: float, seed: int):

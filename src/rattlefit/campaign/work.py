@@ -177,11 +177,11 @@ def resimulated_igr(result, recordings, options: FitOptions, n: int) -> list[lis
 def learned_bytes(result) -> bytes | None:
     """The learned likelihood ``result`` fitted on, as the bytes of its stored file
     (:func:`rattlefit.likelihood.store.write_learned`); None for the synthetic likelihood."""
-    if result.learned is None:
+    if result.state.learned is None:
         return None
     from ..likelihood.store import write_learned
 
-    learned = result.learned
+    learned = result.state.learned
     fields = {f.name: getattr(learned, f.name) for f in dataclasses.fields(learned)}
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "learned.likelihood.h5"
@@ -263,7 +263,7 @@ def fit_stage(task: UnitTask, result, recordings, likelihood: bytes | None) -> d
         for rec, path in zip(recordings, task.unit.paths, strict=True)
     ]
     igr = resimulated_igr(result, recordings, task.options.fit, task.options.resimulations)
-    oils = np.asarray(result.problem.viscosities, dtype=float)
+    oils = np.asarray(result.state.problem.viscosities, dtype=float)
     for k, (info, model) in enumerate(zip(infos, igr, strict=True)):
         info["igr_model"] = model
         info["viscosity_factor"] = float(oils[k] / oils[0])
@@ -282,7 +282,7 @@ def sample_stage(options: CampaignOptions, result, recordings) -> dict:
         n_walkers=options.sample_walkers,
         n_steps=options.sample_steps,
         seed=options.fit.seed,
-        fit=result.options,
+        fit=result.state.options,
     )
     return {"doc": sample(recordings, result, sample_options).to_json()}
 

@@ -224,15 +224,15 @@ def judging_noise(baseline: FitResult, problem) -> tuple[NoiseModel, object]:
     so that the gap and every candidate are judged with the likelihood the fit was made on.
     Raises :class:`~rattlefit.errors.RattlefitError` when ``baseline`` holds neither (a fit
     read back from its JSON)."""
-    if baseline.learned is not None:
+    if baseline.state.learned is not None:
         noise = learned_noise(baseline)
         return noise, dataclasses.replace(problem, sigma=jnp.asarray(noise.sigma))
-    if baseline.noise is None:
+    if baseline.state.noise is None:
         raise RattlefitError(
             "diagnose: the baseline fit carries neither a noise model nor a learned likelihood "
             "(identify in this process)"
         )
-    return baseline.noise, problem
+    return baseline.state.noise, problem
 
 
 def trial_of(
@@ -249,12 +249,14 @@ def trial_of(
     noise, base = judging_noise(baseline, baseline.problem_for(recordings))
     names = options.effects if names is None else names
     problem, candidates = candidate_problem(base, names, static)
-    fit_options = baseline.options
+    fit_options = baseline.state.options
     n_validation = fit_options.n_covariance_realisations
     n_final = options.n_final or FINAL_FACTOR * n_validation
     s_final, s_validation = np.random.SeedSequence(fit_options.seed).spawn(2)  # null: third
-    y0 = release_states(base, baseline.z, n_final, np.random.default_rng(s_final))
-    validation = release_states(base, baseline.z, n_validation, np.random.default_rng(s_validation))
+    y0 = release_states(base, baseline.state.z, n_final, np.random.default_rng(s_final))
+    validation = release_states(
+        base, baseline.state.z, n_validation, np.random.default_rng(s_validation)
+    )
     dry = dry_films(base, recordings)
     nuisances = [i for i, sp in enumerate(base.specs) if sp.log_sd is not None]
     return Trial(
@@ -262,7 +264,7 @@ def trial_of(
         noise,
         np.asarray(base.data),
         y0,
-        baseline.dof,
+        baseline.statistics.dof,
         options.iterations,
         nuisances,
         candidates,
@@ -385,7 +387,7 @@ def drive_cycle(trial: Trial, z_base, recordings, baseline: FitResult, level: fl
     ``z_base`` (:func:`~rattlefit.diagnosis.cycle.cycle_gap`) at the family-wise ``level``,
     each recording's drive reconstructed as ``baseline``'s."""
     say("comparing the drive-cycle statistics with the model without effects …")
-    rigs = [setup(r, drive=baseline.options.drive) for r in recordings]
+    rigs = [setup(r, drive=baseline.state.options.drive) for r in recordings]
     gap = cycle_gap(trial, z_base, rigs, level)
     if gap.significant:
         say(f"  the drive-cycle statistics miss: {gap.phrase()} (p = {gap.p_value:.2g})")
@@ -397,9 +399,9 @@ def identified(recordings, options: DiagnoseOptions, baseline: FitResult | None,
     if baseline is None:
         say("identifying the model without extra effects …")
         return identify(recordings, options.fit, progress=progress)
-    if baseline.recordings != [str(r.path) for r in recordings]:
+    if baseline.provenance.recordings != [str(r.path) for r in recordings]:
         raise RattlefitError(
-            f"diagnose: the baseline fit is of {baseline.recordings}, not of "
+            f"diagnose: the baseline fit is of {baseline.provenance.recordings}, not of "
             f"{[str(r.path) for r in recordings]}"
         )
     return baseline
@@ -409,7 +411,7 @@ def require_band_fit(options: DiagnoseOptions, baseline: FitResult | None) -> No
     """Raise :class:`~rattlefit.errors.RattlefitError` unless the fit the diagnosis starts
     from (``baseline``, else ``options.fit``) compares the band features alone: the
     judgement, its thresholds and its figures are those of the bands."""
-    fit_options = options.fit if baseline is None else baseline.options
+    fit_options = options.fit if baseline is None else baseline.state.options
     if fit_options.features != "bands":
         raise RattlefitError(
             f"diagnose: FitOptions.features: the diagnosis judges the band features, but the "
@@ -431,7 +433,7 @@ def simulated_null(found, recordings, baseline: FitResult, options: DiagnoseOpti
     """``found`` with the encoder findings judged again against the fitted model's null
     (:func:`~rattlefit.diagnosis.null.with_simulated_null`, from the third child of the fit's
     seed), and the effects the significant ones then point to."""
-    seed = np.random.SeedSequence(baseline.options.seed).spawn(3)[2]
+    seed = np.random.SeedSequence(baseline.state.options.seed).spawn(3)[2]
     again = with_simulated_null(
         found, recordings, baseline, n=options.null_realisations, seed=seed, say=say
     )
@@ -450,11 +452,13 @@ def base_model(trial: Trial, baseline: FitResult, say):
     ``baseline``: its point, its χ² on the fresh realisations, the identification's cost and
     the re-fit's, and the warnings about the identification."""
     z_absent = trial.dried(
-        np.concatenate([baseline.z, np.full(len(trial.problem.specs) - len(baseline.z), -Z_END)])
+        np.concatenate(
+            [baseline.state.z, np.full(len(trial.problem.specs) - len(baseline.state.z), -Z_END)]
+        )
     )
     z_base, cost_identified, refit_cost = refit_without_effects(trial, z_absent, say)
     chi2_without, _ = final_chi2(trial, z_base)
-    warnings = baseline_warnings(baseline.success, cost_identified, refit_cost)
+    warnings = baseline_warnings(baseline.statistics.success, cost_identified, refit_cost)
     for w in warnings:
         say("  warning: " + w)
     return z_base, chi2_without, (cost_identified, refit_cost), tuple(warnings)
@@ -503,11 +507,12 @@ def diagnose(
     bands = trial.problem.bands
     return Diagnosis(
         baseline=baseline,
-        residuals=(trial.data - np.stack(baseline.fitted_features)) / np.stack(baseline.sigma),
+        residuals=(trial.data - np.stack(baseline.spectra.fitted))
+        / np.stack(baseline.spectra.sigma),
         band_centers=bands.centers,
         band_edges=bands.edges,
         outcomes=outcomes,
-        seed=baseline.options.seed,
+        seed=baseline.state.options.seed,
         wall_time=wall,
         refit_costs=refit_costs,
         warnings=warnings,

@@ -76,10 +76,10 @@ class Diagnosis:
         """χ², dof and p of the model without extra effects: after the re-fit, on the fresh
         realisations every effect is judged on (the identification's own when not
         measured)."""
-        dof = self.baseline.dof
+        dof = self.baseline.statistics.dof
         if np.isfinite(self.chi2_without):
             return self.chi2_without, dof, float(stats.chi2.sf(self.chi2_without, dof))
-        return self.baseline.chi2, dof, self.baseline.p_value
+        return self.baseline.statistics.chi2, dof, self.baseline.statistics.p_value
 
     @property
     def band_gap(self) -> bool:
@@ -115,12 +115,14 @@ class Diagnosis:
             "findings": [f.as_dict() for f in self.findings],
             "skipped": dict(self.skipped),
             "baseline": {
-                "chi2": self.baseline.chi2,
-                "dof": self.baseline.dof,
-                "p_value": self.baseline.p_value,
-                "converged": self.baseline.success,
-                "likelihood": self.baseline.options.likelihood,
-                "parameters": {k: p.as_dict() for k, p in self.baseline.parameters.items()},
+                "chi2": self.baseline.statistics.chi2,
+                "dof": self.baseline.statistics.dof,
+                "p_value": self.baseline.statistics.p_value,
+                "converged": self.baseline.statistics.success,
+                "likelihood": self.baseline.state.options.likelihood,
+                "parameters": {
+                    k: p.as_dict() for k, p in self.baseline.estimates.parameters.items()
+                },
             },
             "band_centers_hz": np.asarray(self.band_centers).tolist(),
             "residuals": np.asarray(self.residuals).tolist(),
@@ -132,7 +134,7 @@ class Diagnosis:
             "seed": self.seed,
             "platform": self.platform,  # seeded results depend on it
             "wall_time_s": self.wall_time,
-            "recordings": self.baseline.recordings,
+            "recordings": self.baseline.provenance.recordings,
         }
 
 

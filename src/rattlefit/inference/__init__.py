@@ -14,15 +14,28 @@ from .identify import identify
 from .noise import NoiseModel
 from .options import FitOptions
 from .posterior import Posterior, SampleOptions, sample
-from .result import FitResult, ParameterEstimate
+from .result import (
+    Estimates,
+    FitResult,
+    FittedState,
+    ParameterEstimate,
+    Provenance,
+    Spectra,
+    Statistics,
+)
 
 __all__ = [
+    "Estimates",
     "FitOptions",
     "FitResult",
+    "FittedState",
     "NoiseModel",
     "ParameterEstimate",
     "Posterior",
+    "Provenance",
     "SampleOptions",
+    "Spectra",
+    "Statistics",
     "identify",
     "sample",
 ]

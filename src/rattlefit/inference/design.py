@@ -157,9 +157,9 @@ def learned_information(
     (central differences over ``step`` in the log), ``C_r`` their learned covariance (the
     chaotic spread and the variance floor); the films named by lubrication. Raises
     :class:`~rattlefit.errors.RattlefitError` when ``fit`` holds no learned likelihood."""
-    if fit.learned is None:
+    if fit.state.learned is None:
         raise RattlefitError("learned_information: the fit was not made on a learned likelihood")
-    like, z0 = fit.learned.likelihood, np.asarray(fit.z, dtype=float)
+    like, z0 = fit.state.learned.likelihood, np.asarray(fit.state.z, dtype=float)
     names = parameter_names(problem)
     index = {s.name: i for i, s in enumerate(problem.specs)}
     d = []
@@ -264,13 +264,13 @@ def suggest(
     say = progress or (lambda msg: None)
     rng = np.random.default_rng(seed)
     problem = fit.problem_for(recordings)
-    values = {s.name: float(s.value(fit.z[i])) for i, s in enumerate(problem.specs)}
+    values = {s.name: float(s.value(fit.state.z[i])) for i, s in enumerate(problem.specs)}
     films = {
         r.operating.lubrication: values[f] for r, f in zip(recordings, problem.films, strict=True)
     }
     names, now = fitted_information(fit, problem, recordings, values, films, n, rng, say)
     rows = [Planned("now", interval_factors(names, now + prior_information(problem, names)))]
-    params = fit.rattle_params(0)
+    params = fit.estimates.rattle_params(0)
     for label, template, changes in candidates(recordings[0]):
         if template is None:
             more_names, more = names, (LONGER - 1) * now / len(recordings)
@@ -279,7 +279,7 @@ def suggest(
             if rec is None:
                 continue
             say(f"simulating the information of {label} …")
-            more_names, more = film_information(rec, values, films, fit.options, n, rng)
+            more_names, more = film_information(rec, values, films, fit.state.options, n, rng)
         union, total = add_information(names, now, more_names, more)
         rows.append(
             Planned(label, interval_factors(union, total + prior_information(problem, union)))
@@ -292,14 +292,14 @@ def fitted_information(fit: FitResult, problem, recordings, values, films, n, rn
     """The fitted recordings' information and its parameters' names: from ``fit``'s learned
     likelihood when it has one (:func:`learned_information`), else simulated at the fitted
     ``values`` recording by recording (:func:`film_information`)."""
-    if fit.learned is not None:
+    if fit.state.learned is not None:
         say("the information of the fitted recordings from their learned likelihood …")
         return learned_information(fit, problem, recordings)
     names: list[str] = []
     now = np.zeros((0, 0))
     for rec in recordings:
         say(f"simulating the information of {rec.path} …")
-        more_names, more = film_information(rec, values, films, fit.options, n, rng)
+        more_names, more = film_information(rec, values, films, fit.state.options, n, rng)
         names, now = add_information(names, now, more_names, more)
     return names, now
 

@@ -50,7 +50,17 @@ from .profile import (
     profile_stage,
     span_profile_points,
 )
-from .result import FitResult, estimates_of, profiles_in_si, with_groups
+from .result import (
+    Estimates,
+    FitResult,
+    FittedState,
+    Provenance,
+    Spectra,
+    Statistics,
+    estimates_of,
+    profiles_in_si,
+    with_groups,
+)
 from .starts import starting_points
 
 
@@ -159,28 +169,13 @@ def assemble_result(
     corr = cov / np.outer(np.maximum(sd, 1e-300), np.maximum(sd, 1e-300))
     z_lo, z_hi = interval_ends(unc, options)
     p = len(problem.specs)
-    return FitResult(
+    estimates = Estimates(
         parameters=with_groups(
             estimates_of(problem, z, z_lo, z_hi, [r.recording.operating.lubrication for r in rigs]),
             groups or {},
         ),
-        correlation=corr,
         names=[s.name for s in problem.specs],
-        chi2=lap.chi2,
-        dof=degrees_of_freedom(problem),
-        n_iterations=refined.n_iter,
-        success=refined.converged,
-        message=search_message(refined, unc.recentred),
-        seed=options.seed,
-        wall_time=wall,
-        recordings=[str(r.recording.path) for r in rigs],
-        options=options,
-        z=z,
-        covariance_z=cov,
-        measured_features=[np.asarray(d) for d in problem.data],
-        fitted_features=list(lap.mean),
-        sigma=[np.asarray(s) for s in problem.sigma],
-        band_centers=problem.bands.centers,
+        correlation=corr,
         map_params=[
             {
                 k: float(v)
@@ -188,14 +183,32 @@ def assemble_result(
             }
             for i in range(problem.n_rec)
         ],
-        chi2_recordings=[float(c) for c in lap.noise.chi2_recordings],
-        regime_share=[float(x) for x in lap.noise.regime_share],
-        noise=lap.noise,
         profile=unc.profiles.info,
-        platform=platform,
-        problem=problem,
         profiles=profiles_in_si(problem, unc.profiles.profiles),
     )
+    statistics = Statistics(
+        chi2=lap.chi2,
+        dof=degrees_of_freedom(problem),
+        chi2_recordings=[float(c) for c in lap.noise.chi2_recordings],
+        regime_share=[float(x) for x in lap.noise.regime_share],
+        n_iterations=refined.n_iter,
+        success=refined.converged,
+        message=search_message(refined, unc.recentred),
+    )
+    spectra = Spectra(
+        measured=[np.asarray(d) for d in problem.data],
+        fitted=list(lap.mean),
+        sigma=[np.asarray(s) for s in problem.sigma],
+        band_centers=problem.bands.centers,
+    )
+    provenance = Provenance(
+        recordings=[str(r.recording.path) for r in rigs],
+        seed=options.seed,
+        wall_time=wall,
+        platform=platform,
+    )
+    state = FittedState(options, z, cov, noise=lap.noise, problem=problem)
+    return FitResult(estimates, statistics, spectra, provenance, state)
 
 
 def identify(

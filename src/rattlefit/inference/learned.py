@@ -32,7 +32,18 @@ from .group import flanks, group_films, group_spec
 from .noise import NoiseModel
 from .options import FitOptions
 from .problem import Problem, problem_from
-from .result import FitResult, ParameterEstimate, estimate, estimates_of, with_groups
+from .result import (
+    Estimates,
+    FitResult,
+    FittedState,
+    ParameterEstimate,
+    Provenance,
+    Spectra,
+    Statistics,
+    estimate,
+    estimates_of,
+    with_groups,
+)
 
 #: Starts of the quasi-Newton search: the design points of least learned cost.
 LEARNED_STARTS = 8
@@ -124,26 +135,10 @@ def learned_result(
     lubrications = [r.recording.operating.lubrication for r in rigs]
     p = len(problem.specs)
     converged = fit.optimum.converged
-    return FitResult(
+    estimates = Estimates(
         parameters=with_groups(estimates_of(problem, z, z_lo, z_hi, lubrications), groups[0]),
-        correlation=cov / np.outer(sd, sd),
         names=[s.name for s in problem.specs],
-        chi2=fit.chi2,
-        dof=fit.dof,
-        n_iterations=fit.optimum.steps,
-        success=converged,
-        message=("converged" if converged else "step limit reached")
-        + " (quasi-Newton on the learned likelihood)",
-        seed=options.seed,
-        wall_time=wall,
-        recordings=[str(r.recording.path) for r in rigs],
-        options=options,
-        z=z,
-        covariance_z=cov,
-        measured_features=[np.asarray(d) for d in problem.data],
-        fitted_features=list(mean),
-        sigma=[np.sqrt(np.diag(c)) for c in total],
-        band_centers=problem.bands.centers,
+        correlation=cov / np.outer(sd, sd),
         map_params=[
             {
                 k: float(v)
@@ -151,33 +146,50 @@ def learned_result(
             }
             for i in range(problem.n_rec)
         ],
-        chi2_recordings=[float(c) for c in np.asarray(chi2_rec)],
-        regime_share=[],
-        noise=None,
         profile={"threshold": CHI2_95, "likelihood": "learned"},
-        platform=platform,
-        problem=problem,
         profiles={**profiles_of(problem, fit), **groups[1]},
-        likelihood=info,
-        learned=learned,
     )
+    statistics = Statistics(
+        chi2=fit.chi2,
+        dof=fit.dof,
+        chi2_recordings=[float(c) for c in np.asarray(chi2_rec)],
+        n_iterations=fit.optimum.steps,
+        success=converged,
+        message=("converged" if converged else "step limit reached")
+        + " (quasi-Newton on the learned likelihood)",
+    )
+    spectra = Spectra(
+        measured=[np.asarray(d) for d in problem.data],
+        fitted=list(mean),
+        sigma=[np.sqrt(np.diag(c)) for c in total],
+        band_centers=problem.bands.centers,
+    )
+    provenance = Provenance(
+        recordings=[str(r.recording.path) for r in rigs],
+        seed=options.seed,
+        wall_time=wall,
+        platform=platform,
+        likelihood=info,
+    )
+    state = FittedState(options, z, cov, problem=problem, learned=learned)
+    return FitResult(estimates, statistics, spectra, provenance, state)
 
 
 def learned_noise(fit: FitResult) -> NoiseModel:
     """The noise model of ``fit``, a fit on the learned likelihood, at its optimum: each
     feature's spread and the features' correlation from the learned density's covariance
     there (the recordings' whitening block-diagonal, since recordings are independent), each
-    spread widened by the Monte Carlo error of a mean of ``fit.options.n_realisations``
+    spread widened by the Monte Carlo error of a mean of ``fit.state.options.n_realisations``
     realisations, as the synthetic likelihood's is. No Birge inflation (``row_scale`` one):
     the learned density's spread is checked against fresh simulations instead
     (:mod:`rattlefit.likelihood.check`). ``sigma_dof`` is the simulations it was learned
     from per recording. Raises :class:`~rattlefit.errors.RattlefitError` when ``fit`` holds
     no learned likelihood."""
-    if fit.learned is None:
+    if fit.state.learned is None:
         raise RattlefitError("learned_noise: the fit was not made on a learned likelihood")
-    _, cov = (np.asarray(x) for x in fit.learned.likelihood.moments(jnp.asarray(fit.z)))
+    _, cov = (np.asarray(x) for x in fit.state.learned.likelihood.moments(jnp.asarray(fit.state.z)))
     n_rec, n_feat = cov.shape[:2]
-    widen = 1.0 + 1.0 / fit.options.n_realisations
+    widen = 1.0 + 1.0 / fit.state.options.n_realisations
     sigma = np.sqrt(np.diagonal(cov, axis1=1, axis2=2) * widen)
     whiten = np.zeros((n_rec * n_feat, n_rec * n_feat))
     for k in range(n_rec):
@@ -189,8 +201,8 @@ def learned_noise(fit: FitResult) -> NoiseModel:
         sigma,
         whiten,
         np.ones(n_rec * n_feat),
-        np.asarray(fit.chi2_recordings, dtype=float),
-        int(fit.learned.design.u.shape[0]),
+        np.asarray(fit.statistics.chi2_recordings, dtype=float),
+        int(fit.state.learned.design.u.shape[0]),
     )
 
 

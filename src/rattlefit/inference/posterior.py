@@ -487,20 +487,20 @@ def run_chain(
 
 def _context_of(fit: FitResult, recordings: Sequence[Recording], seed: int) -> ChainContext:
     """A new chain's context from the fit it starts at."""
-    if fit.noise is None and fit.learned is None:
+    if fit.state.noise is None and fit.state.learned is None:
         raise RattlefitError(
             "sample: the fit result carries neither a noise model nor a learned likelihood "
             "(run identify in this process)"
         )
     return ChainContext(
-        fit.options,
-        np.asarray(fit.z),
-        np.asarray(fit.covariance_z),
-        np.stack(fit.measured_features),
-        fit.noise,
+        fit.state.options,
+        np.asarray(fit.state.z),
+        np.asarray(fit.state.covariance_z),
+        np.stack(fit.spectra.measured),
+        fit.state.noise,
         [str(r.path) for r in recordings],
         seed,
-        fit.learned,
+        fit.state.learned,
     )
 
 

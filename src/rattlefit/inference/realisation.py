@@ -28,15 +28,15 @@ def fitted_realisations(result: FitResult, recordings: Sequence[Recording]) -> l
     lubrications = [r.operating.lubrication for r in recordings]
     out = []
     for k, rec in enumerate(recordings):
-        rig = setup(rec, drive=result.options.drive)
+        rig = setup(rec, drive=result.state.options.drive)
         sol = simulate(
             rig.model,
-            result.rattle_params(k),
+            result.estimates.rattle_params(k),
             rig.drive,
             duration=rec.duration,
             sample_rate=rec.sample_rate_hz,
-            rtol=result.options.rtol,
-            atol=absolute_tolerances(result.options.rtol, lubrications),
+            rtol=result.state.options.rtol,
+            atol=absolute_tolerances(result.state.options.rtol, lubrications),
         )
         out.append(np.asarray(sol.relative_motion))
     return out
@@ -60,9 +60,9 @@ def fitted_recordings(
     absolute tolerances of ``lubrications`` (default the dry ones, the tightest, so that
     every lubrication runs one compiled program) set the solver's accuracy. Raises
     :class:`~rattlefit.errors.SolverError` when a simulation fails."""
-    rtol = result.options.rtol if rtol is None else rtol
-    rig = setup(recording, drive=result.options.drive)
-    params = result.rattle_params(k)
+    rtol = result.state.options.rtol if rtol is None else rtol
+    rig = setup(recording, drive=result.state.options.drive)
+    params = result.estimates.rattle_params(k)
     c = 0.5 * float(params.backlash)
     y0 = np.stack([rng.uniform(-c, c, size=n), np.zeros(n)], axis=1)
     zeros = rng.integers(0, recording.counts_per_rev, size=(n, 2))

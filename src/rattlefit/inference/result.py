@@ -61,91 +61,65 @@ class ParameterEstimate:
 
 
 @dataclasses.dataclass(frozen=True)
-class FitResult:
-    """What :func:`~rattlefit.inference.identify.identify` returns. R recordings, P fitted
-    parameters (:attr:`names`), B bands.
+class Estimates:
+    """What a fit estimated. P fitted parameters (:attr:`names`), R recordings.
 
     parameters : name → :class:`ParameterEstimate`: the film half-length(s) (``a`` or
         ``a[lubrication]``), ``drag_torque``, ``viscosity`` (Pa s at the first recording's
-        temperature), then the nuisances.
+        temperature), any squeeze-film groups, then the nuisances.
+    names : the P fitted parameters, in the order of :attr:`FittedState.z`
+        (``viscosity_scale`` unconverted).
     correlation : (P, P) correlation of the Laplace covariance in z.
-    names : the P fitted parameters, in the order of ``z`` (``viscosity_scale`` unconverted).
-    chi2, dof : χ² of the data rows at the optimum (band correlations included) and its
-        degrees of freedom (R·B minus the free parameters).
-    n_iterations : Levenberg–Marquardt steps over all starts.
-    success : every Levenberg–Marquardt run converged or stalled before its step limit.
-    message : how the search ended, in words.
-    seed : the fit's seed (``FitOptions.seed``).
-    wall_time : seconds the fit took.
-    recordings : the recordings' paths.
-    options : the :class:`~rattlefit.inference.options.FitOptions` used.
-    z : (P,) the optimum in the unconstrained coordinates.
-    covariance_z : (P, P) Laplace covariance in z.
-    measured_features, fitted_features, sigma : R arrays (F,): the measured features, the
-        model's mean at the optimum and each feature's standard deviation; the first B are
-        the log10 band PSDs, any further ones the drive-cycle-folded statistics
-        (``FitOptions.features``).
-    band_centers : (B,) band centre frequencies, Hz.
     map_params : R dicts of the :class:`~rattlefit.physics.model.RattleParams` at the optimum.
-    chi2_recordings : (R,) each recording's χ² at the optimum.
-    regime_share : (R,) share of the realisations in the regime each recording is compared
-        with; below one half the recording is in a rarer regime than another.
-    noise : the :class:`~rattlefit.inference.noise.NoiseModel` fixed at the optimum.
     profile : what set the interval ends: ``threshold`` (Δcost above the optimum's),
         ``monte_carlo_sd`` and, with the roughness allowance, ``roughness_rms``,
         ``realisation_sets`` and ``roughness_sd``.
-    platform : what a seeded result depends on besides its inputs
-        (:func:`~rattlefit.reproducibility.platform_info`), captured when the fit ran.
-    problem : the fit's :class:`~rattlefit.inference.problem.Problem` at the optimum (its
-        realisations and band spread), for :mod:`~rattlefit.diagnosis` and the posterior;
-        not serialised. Rebuild it from the recordings with :meth:`problem_for`.
     profiles : each free parameter's profile, ``(value in SI, Δcost above the optimum's)``
         pairs in increasing value; an interval is where Δcost < ``profile["threshold"]``.
-    likelihood : with ``FitOptions(likelihood="learned")``, how the likelihood was learned
-        (simulations, rounds, their wall times and rate) and its check against fresh
-        simulations (:mod:`rattlefit.likelihood.check`); empty otherwise.
-    learned : the :class:`~rattlefit.likelihood.store.Learned` likelihood of such a fit (the
-        likelihood, its design, test-point key and seed), for the posterior and for
-        :func:`~rattlefit.likelihood.store.write_learned`; not in the JSON.
     """
 
     parameters: dict[str, ParameterEstimate]
-    correlation: np.ndarray
     names: list[str]
+    correlation: np.ndarray
+    map_params: list[dict[str, float]]
+    profile: dict[str, float] = dataclasses.field(default_factory=dict)
+    profiles: dict[str, list[tuple[float, float]]] = dataclasses.field(default_factory=dict)
+
+    def rattle_params(self, k: int = 0) -> RattleParams:
+        """The MAP :class:`RattleParams` of recording ``k``."""
+        v = self.map_params[k]
+        return RattleParams(
+            v["film_half_length"],
+            v["drag_torque"],
+            v["viscosity"],
+            v["backlash"],
+            min_film=v["min_film"],
+            stiffness_scale=v["stiffness_scale"],
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class Statistics:
+    """How well the model fits, and how the search ended.
+
+    chi2, dof : χ² of the data rows at the optimum (band correlations included) and its
+        degrees of freedom (R·F minus the free parameters).
+    chi2_recordings : (R,) each recording's χ² at the optimum.
+    regime_share : (R,) share of the realisations in the regime each recording is compared
+        with; below one half the recording is in a rarer regime than another (empty on the
+        learned likelihood).
+    n_iterations : optimiser steps over all starts.
+    success : every search converged or stalled before its step limit.
+    message : how the search ended, in words.
+    """
+
     chi2: float
     dof: int
-    n_iterations: int
-    success: bool
-    message: str
-    seed: int
-    wall_time: float
-    recordings: list[str]
-    options: FitOptions
-    z: np.ndarray
-    covariance_z: np.ndarray
-    measured_features: list[np.ndarray]
-    fitted_features: list[np.ndarray]
-    sigma: list[np.ndarray]
-    band_centers: np.ndarray
-    map_params: list[dict[str, float]]
     chi2_recordings: list[float] = dataclasses.field(default_factory=list)
     regime_share: list[float] = dataclasses.field(default_factory=list)
-    noise: NoiseModel | None = dataclasses.field(default=None, repr=False, compare=False)
-    profile: dict[str, float] = dataclasses.field(default_factory=dict)
-    platform: dict = dataclasses.field(default_factory=dict, compare=False)
-    problem: Problem | None = dataclasses.field(default=None, repr=False, compare=False)
-    profiles: dict[str, list[tuple[float, float]]] = dataclasses.field(default_factory=dict)
-    likelihood: dict = dataclasses.field(default_factory=dict)
-    learned: object = dataclasses.field(default=None, repr=False, compare=False)
-
-    def problem_for(self, recordings) -> Problem:
-        """The fit's problem, with its band spread at the optimum: :attr:`problem` when the
-        fit ran in this process, else rebuilt from ``recordings`` (the fitted ones) and the
-        fit's options (:func:`~rattlefit.inference.problem.problem_from`)."""
-        if self.problem is not None:
-            return self.problem
-        problem, _, _ = problem_from(recordings, self.options)
-        return dataclasses.replace(problem, sigma=jnp.asarray(np.stack(self.sigma)))
+    n_iterations: int = 0
+    success: bool = True
+    message: str = ""
 
     @property
     def p_value(self) -> float:
@@ -170,6 +144,49 @@ class FitResult:
             k for k, c in enumerate(self.chi2_recordings) if stats.chi2.sf(c, share) < POOR_FIT_P
         ]
 
+
+@dataclasses.dataclass(frozen=True)
+class Spectra:
+    """The features compared: R arrays (F,) each. The first B of a recording's F features are
+    the log10 band PSDs of Δθ* (rad²/Hz), any further ones the drive-cycle-folded statistics
+    (``FitOptions.features``).
+
+    measured : the recordings' features.
+    fitted : the model's mean features at the optimum.
+    sigma : each feature's standard deviation at the optimum.
+    band_centers : (B,) band centre frequencies, Hz.
+    """
+
+    measured: list[np.ndarray]
+    fitted: list[np.ndarray]
+    sigma: list[np.ndarray]
+    band_centers: np.ndarray
+
+    def bands_of(self, features) -> list[float]:
+        """The band part (the first B) of one recording's feature vector, as a list."""
+        return np.asarray(features)[: len(self.band_centers)].tolist()
+
+
+@dataclasses.dataclass(frozen=True)
+class Provenance:
+    """Where a fit came from.
+
+    recordings : the recordings' paths.
+    seed : the fit's seed (``FitOptions.seed``).
+    wall_time : seconds the fit took.
+    platform : what a seeded result depends on besides its inputs
+        (:func:`~rattlefit.reproducibility.platform_info`), captured when the fit ran.
+    likelihood : with ``FitOptions(likelihood="learned")``, how the likelihood was learned
+        (simulations, rounds, their wall times and rate) and its check against fresh
+        simulations (:mod:`rattlefit.likelihood.check`); empty otherwise.
+    """
+
+    recordings: list[str]
+    seed: int
+    wall_time: float
+    platform: dict = dataclasses.field(default_factory=dict, compare=False)
+    likelihood: dict = dataclasses.field(default_factory=dict)
+
     @property
     def recording_names(self) -> list[str]:
         """Each recording's file name, or ``"recording k"`` (from 1) for one made in memory
@@ -179,54 +196,93 @@ class FitResult:
             for k, p in enumerate(self.recordings)
         ]
 
-    def rattle_params(self, k: int = 0) -> RattleParams:
-        """The MAP :class:`RattleParams` of recording ``k``."""
-        v = self.map_params[k]
-        return RattleParams(
-            v["film_half_length"],
-            v["drag_torque"],
-            v["viscosity"],
-            v["backlash"],
-            min_film=v["min_film"],
-            stiffness_scale=v["stiffness_scale"],
-        )
 
-    def bands_of(self, features) -> list[float]:
-        """The band part (the first B) of one recording's feature vector, as a list."""
-        return np.asarray(features)[: len(self.band_centers)].tolist()
+@dataclasses.dataclass(frozen=True)
+class FittedState:
+    """What :func:`~rattlefit.sample` and :func:`~rattlefit.diagnose` start from.
+
+    options : the :class:`~rattlefit.inference.options.FitOptions` of the fit.
+    z : (P,) the optimum in the unconstrained coordinates.
+    covariance_z : (P, P) Laplace covariance in z.
+    noise : the synthetic likelihood's
+        :class:`~rattlefit.inference.noise.NoiseModel` fixed at the optimum; None on the
+        learned likelihood or when read back from JSON.
+    problem : the fit's :class:`~rattlefit.inference.problem.Problem` at the optimum (its
+        realisations and band spread); None when the fit did not run in this process
+        (:meth:`problem_for` rebuilds it).
+    learned : the :class:`~rattlefit.likelihood.store.Learned` likelihood of a fit on it
+        (the likelihood, its design, test-point key and seed); None otherwise.
+    """
+
+    options: FitOptions
+    z: np.ndarray
+    covariance_z: np.ndarray
+    noise: NoiseModel | None = dataclasses.field(default=None, repr=False, compare=False)
+    problem: Problem | None = dataclasses.field(default=None, repr=False, compare=False)
+    learned: object = dataclasses.field(default=None, repr=False, compare=False)
+
+    def problem_for(self, recordings, sigma) -> Problem:
+        """The fit's problem, with its band spread ``sigma`` (R arrays (F,)) at the optimum:
+        :attr:`problem` when the fit ran in this process, else rebuilt from ``recordings``
+        (the fitted ones) and :attr:`options`
+        (:func:`~rattlefit.inference.problem.problem_from`)."""
+        if self.problem is not None:
+            return self.problem
+        problem, _, _ = problem_from(recordings, self.options)
+        return dataclasses.replace(problem, sigma=jnp.asarray(np.stack(sigma)))
+
+
+@dataclasses.dataclass(frozen=True)
+class FitResult:
+    """What :func:`~rattlefit.inference.identify.identify` returns: the :class:`Estimates`,
+    the fit's :class:`Statistics`, the :class:`Spectra` compared, its :class:`Provenance`
+    and the :class:`FittedState` that sampling and diagnosis start from. ``to_json`` is the
+    ``identify -o`` document."""
+
+    estimates: Estimates
+    statistics: Statistics
+    spectra: Spectra
+    provenance: Provenance
+    state: FittedState
+
+    def problem_for(self, recordings) -> Problem:
+        """The fit's problem at the optimum (:meth:`FittedState.problem_for` with the fit's
+        spread)."""
+        return self.state.problem_for(recordings, self.spectra.sigma)
 
     def to_json(self) -> dict:
         """The ``--output`` document: parameters (SI), fit diagnostics and the spectra
         (log10 band PSDs of Δθ*, rad²/Hz, per recording: measured, fitted mean, σ)."""
+        est, st, sp, pr = self.estimates, self.statistics, self.spectra, self.provenance
         return {
-            "parameters": {k: v.as_dict() for k, v in self.parameters.items()},
+            "parameters": {k: v.as_dict() for k, v in est.parameters.items()},
             "fit": {
-                "chi2": self.chi2,
-                "dof": self.dof,
-                "reduced_chi2": self.chi2 / max(self.dof, 1),
-                "p_value": self.p_value,
-                "poor_fit": self.poor_fit,
-                "poorly_fitted_recordings": [self.recordings[k] for k in self.poorly_fitted],
-                "chi2_per_recording": self.chi2_recordings,
-                "regime_share_per_recording": self.regime_share,
-                "iterations": self.n_iterations,
-                "success": self.success,
-                "message": self.message,
-                "seed": self.seed,
-                "platform": self.platform,  # seeded results depend on it
-                "wall_time_s": self.wall_time,
-                "recordings": self.recordings,
-                "profile": self.profile,
-                "profiles": {k: [list(p) for p in v] for k, v in self.profiles.items()},
-                "correlation": {"names": self.names, "matrix": self.correlation.tolist()},
-                "likelihood": self.likelihood or {"method": "synthetic"},
-                "options": self.options.to_dict(),  # flat, priors as their specs
+                "chi2": st.chi2,
+                "dof": st.dof,
+                "reduced_chi2": st.chi2 / max(st.dof, 1),
+                "p_value": st.p_value,
+                "poor_fit": st.poor_fit,
+                "poorly_fitted_recordings": [pr.recordings[k] for k in st.poorly_fitted],
+                "chi2_per_recording": st.chi2_recordings,
+                "regime_share_per_recording": st.regime_share,
+                "iterations": st.n_iterations,
+                "success": st.success,
+                "message": st.message,
+                "seed": pr.seed,
+                "platform": pr.platform,  # seeded results depend on it
+                "wall_time_s": pr.wall_time,
+                "recordings": pr.recordings,
+                "profile": est.profile,
+                "profiles": {k: [list(p) for p in v] for k, v in est.profiles.items()},
+                "correlation": {"names": est.names, "matrix": est.correlation.tolist()},
+                "likelihood": pr.likelihood or {"method": "synthetic"},
+                "options": self.state.options.to_dict(),  # flat, priors as their specs
             },
             "spectra": {
-                "band_centers_hz": np.asarray(self.band_centers).tolist(),
-                "measured": [self.bands_of(f) for f in self.measured_features],
-                "fitted": [self.bands_of(f) for f in self.fitted_features],
-                "sigma": [self.bands_of(s) for s in self.sigma],
+                "band_centers_hz": np.asarray(sp.band_centers).tolist(),
+                "measured": [sp.bands_of(f) for f in sp.measured],
+                "fitted": [sp.bands_of(f) for f in sp.fitted],
+                "sigma": [sp.bands_of(s) for s in sp.sigma],
             },
         }
 

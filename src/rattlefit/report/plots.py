@@ -75,7 +75,7 @@ def plot_fit(
     directory = Path(directory)
     out = []
     for k, (rec, motion) in enumerate(zip(recordings, realisations, strict=True)):
-        rig = setup(rec, drive=result.options.drive)
+        rig = setup(rec, drive=result.state.options.drive)
         fig, (ax1, ax2) = pyplot().subplots(2, 1, figsize=(9, 8))
         f = rig.bands.frequencies
         measured = np.asarray(
@@ -89,9 +89,9 @@ def plot_fit(
         ax1.loglog(
             f[1:], simulated[1:], color="C1", lw=0.8, alpha=0.7, label="one fitted realisation"
         )
-        c = result.band_centers
-        err = 2 * np.asarray(result.bands_of(result.sigma[k]))
-        fitted = np.asarray(result.bands_of(result.fitted_features[k]))
+        c = result.spectra.band_centers
+        err = 2 * np.asarray(result.spectra.bands_of(result.spectra.sigma[k]))
+        fitted = np.asarray(result.spectra.bands_of(result.spectra.fitted[k]))
         ax1.fill_between(
             c,
             10 ** (fitted - err),
@@ -102,7 +102,7 @@ def plot_fit(
             label=SPREAD_LABEL,
         )
         ax1.plot(c, 10**fitted, "s-", ms=3, color="C0", label="fitted model (mean)")
-        measured_bands = 10 ** np.asarray(result.bands_of(result.measured_features[k]))
+        measured_bands = 10 ** np.asarray(result.spectra.bands_of(result.spectra.measured[k]))
         ax1.plot(c, measured_bands, "o", ms=4, color="k", label="measured bands")
         ax1.axhline(
             rig.noise_floor, color="0.3", ls=":", lw=0.8, label="encoder quantisation floor"
@@ -126,14 +126,21 @@ def plot_fit(
         ax2.set_ylabel("Δθ* about the middle of its range (mrad)")
         ax2.legend(fontsize=8, loc="lower left", bbox_to_anchor=(0, 1.0), ncol=2, frameon=False)
         out.append(_save(fig, directory / f"fit_{k}_{Path(rec.path or 'recording').stem}.png"))
-    names = result.names
+    names = result.estimates.names
     fig, ax = pyplot().subplots(figsize=(1.0 + 0.6 * len(names), 0.8 + 0.6 * len(names)))
-    im = ax.imshow(result.correlation, vmin=-1, vmax=1, cmap="RdBu_r")
+    im = ax.imshow(result.estimates.correlation, vmin=-1, vmax=1, cmap="RdBu_r")
     ax.set_xticks(range(len(names)), names, rotation=45, ha="right")
     ax.set_yticks(range(len(names)), names)
     for i in range(len(names)):
         for j in range(len(names)):
-            ax.text(j, i, f"{result.correlation[i, j]:.2f}", ha="center", va="center", fontsize=7)
+            ax.text(
+                j,
+                i,
+                f"{result.estimates.correlation[i, j]:.2f}",
+                ha="center",
+                va="center",
+                fontsize=7,
+            )
     fig.colorbar(im, ax=ax, label="correlation")
     ax.set_title("parameter correlations (Laplace)")
     out.append(_save(fig, directory / "correlation.png"))
@@ -287,7 +294,7 @@ def plot_diagnosis(
         ax.axhline(0, color="0.4", lw=0.6)
         ax.set_ylabel("(measured − model)/σ")
         ax.set_xlabel("band centre (Hz)")
-        name = diag.baseline.recording_names[k]
+        name = diag.baseline.provenance.recording_names[k]
         ax.set_title(f"{name}: band residuals (shaded: within ±{MISSED_Z:g} σ)")
         ax.legend(fontsize=8)
     ax = axes[-1, 0]
@@ -301,14 +308,14 @@ def plot_diagnosis(
         color=["C2" if o.supported else "C0" for o in diag.outcomes],
         label="with the effect (green: supported)",
     )
-    ax.axhline(diag.baseline.dof, color="k", ls=":", lw=0.8, label="dof")
+    ax.axhline(diag.baseline.statistics.dof, color="k", ls=":", lw=0.8, label="dof")
     ax.set_xticks(x, names, rotation=20, ha="right")
     ax.set_ylabel("χ²")
     ax.legend(fontsize=8)
     fig.tight_layout()
     out = [_save(fig, directory / "diagnosis.png")]
     if diag.drive_cycle is not None:
-        names = diag.baseline.recording_names
+        names = diag.baseline.provenance.recording_names
         fig = draw_drive_cycle(diag.drive_cycle.as_dict(), names)
         out.append(_save(fig, directory / "drive_cycle.png"))
     for k, rec in enumerate(recordings):

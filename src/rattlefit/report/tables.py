@@ -27,9 +27,9 @@ def format_table(result: FitResult) -> str:
     physical parameters first, then the nuisances."""
     rows = [("parameter", "estimate", "95 % interval", "unit", "identified")]
     advice = []
-    names = sorted(result.parameters, key=lambda n: not is_physical(n))
+    names = sorted(result.estimates.parameters, key=lambda n: not is_physical(n))
     for k, name in enumerate(names):
-        p = result.parameters[name]
+        p = result.estimates.parameters[name]
         if k and not is_physical(name) and is_physical(names[k - 1]):
             rows.append(("nuisances:", "", "", "", ""))
         mult, unit = display(name, p.unit)
@@ -57,43 +57,42 @@ def format_table(result: FitResult) -> str:
     lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
     lines = [line.rstrip() for line in lines]
+    st, pr = result.statistics, result.provenance
     per = ""
-    if len(result.chi2_recordings) > 1:
-        per = " (" + " + ".join(f"{c:.1f}" for c in result.chi2_recordings) + " by recording)"
-    search = (
-        "quasi-Newton" if result.likelihood.get("method") == "learned" else ("Levenberg–Marquardt")
-    )
-    state = "converged" if result.success else "stopped at its step limit"
+    if len(st.chi2_recordings) > 1:
+        per = " (" + " + ".join(f"{c:.1f}" for c in st.chi2_recordings) + " by recording)"
+    search = "quasi-Newton" if pr.likelihood.get("method") == "learned" else ("Levenberg–Marquardt")
+    state = "converged" if st.success else "stopped at its step limit"
     lines.append(
-        f"χ² = {result.chi2:.1f}{per} on {result.dof} dof (p = {result.p_value:.2g}); "
-        f"{search} {state} after {result.n_iterations} steps; seed {result.seed}; "
-        f"{result.wall_time:.1f} s"
+        f"χ² = {st.chi2:.1f}{per} on {st.dof} dof (p = {st.p_value:.2g}); "
+        f"{search} {state} after {st.n_iterations} steps; seed {pr.seed}; "
+        f"{pr.wall_time:.1f} s"
     )
-    if "threshold" in result.profile:
-        lines.append(_profile_line(result.profile))
-    lines += below_optimum(result.profiles)
+    if "threshold" in result.estimates.profile:
+        lines.append(_profile_line(result.estimates.profile))
+    lines += below_optimum(result.estimates.profiles)
     lines += advice
-    for k, share in enumerate(result.regime_share):
+    for k, share in enumerate(st.regime_share):
         if share < 0.5:
             which = "the recording"
-            if len(result.recordings) > 1:
-                which = result.recording_names[k]
+            if len(pr.recordings) > 1:
+                which = pr.recording_names[k]
             lines.append(
                 f"note: {which} is in a regime that {share:.0%} of the model's releases reach "
                 "at the fitted parameters (the others settle into another); the fit compares it "
                 "with that regime (FitOptions.regime), since which one a rig is on is its "
                 "history's choice."
             )
-    if result.poor_fit:
+    if st.poor_fit:
         which = "this recording"
-        widened = f"√(χ²/dof) = {(result.chi2 / result.dof) ** 0.5:.1f}"
-        if len(result.chi2_recordings) > 1:
-            poor = [result.recording_names[k] for k in result.poorly_fitted]
+        widened = f"√(χ²/dof) = {(st.chi2 / st.dof) ** 0.5:.1f}"
+        if len(st.chi2_recordings) > 1:
+            poor = [pr.recording_names[k] for k in st.poorly_fitted]
             which = ", ".join(poor) if poor else "these recordings together"
             widened = "each recording's own √(χ²/dof)"
         lines.append(
-            f"warning: χ² is far above its {result.dof} degrees of freedom "
-            f"(p = {result.p_value:.1e}): the model does not explain {which} within "
+            f"warning: χ² is far above its {st.dof} degrees of freedom "
+            f"(p = {st.p_value:.1e}): the model does not explain {which} within "
             f"its run-to-run spread. The intervals are widened by {widened} but may still "
             "miss; look at the spectrum plot (--plot)."
         )
@@ -242,9 +241,10 @@ def format_diagnosis(diag: Diagnosis) -> str:
                 f"(the recording has {more} power)"
             )
     else:
+        base = diag.baseline.statistics
         lines.append(
-            f"no band misses by more than {MISSED_Z:g} σ (χ² = {diag.baseline.chi2:.1f} on "
-            f"{diag.baseline.dof} dof, p = {diag.baseline.p_value:.2g})"
+            f"no band misses by more than {MISSED_Z:g} σ (χ² = {base.chi2:.1f} on "
+            f"{base.dof} dof, p = {base.p_value:.2g})"
         )
     lines += cycle_lines(diag)
     rows = [
