@@ -30,7 +30,6 @@ import dataclasses
 import time
 from collections.abc import Callable, Sequence
 
-import jax.numpy as jnp
 import numpy as np
 
 from ..io.recording import Recording
@@ -54,11 +53,12 @@ from .result import (
     Estimates,
     FitResult,
     FittedState,
-    Provenance,
-    Spectra,
     Statistics,
     estimates_of,
+    map_params_of,
     profiles_in_si,
+    provenance_of,
+    spectra_of,
     with_groups,
 )
 from .starts import starting_points
@@ -168,7 +168,6 @@ def assemble_result(
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     corr = cov / np.outer(np.maximum(sd, 1e-300), np.maximum(sd, 1e-300))
     z_lo, z_hi = interval_ends(unc, options)
-    p = len(problem.specs)
     estimates = Estimates(
         parameters=with_groups(
             estimates_of(problem, z, z_lo, z_hi, [r.recording.operating.lubrication for r in rigs]),
@@ -176,13 +175,7 @@ def assemble_result(
         ),
         names=[s.name for s in problem.specs],
         correlation=corr,
-        map_params=[
-            {
-                k: float(v)
-                for k, v in problem.params_for(jnp.asarray(z), i, jnp.zeros(p)).as_dict().items()
-            }
-            for i in range(problem.n_rec)
-        ],
+        map_params=map_params_of(problem, z),
         profile=unc.profiles.info,
         profiles=profiles_in_si(problem, unc.profiles.profiles),
     )
@@ -195,18 +188,8 @@ def assemble_result(
         success=refined.converged,
         message=search_message(refined, unc.recentred),
     )
-    spectra = Spectra(
-        measured=[np.asarray(d) for d in problem.data],
-        fitted=list(lap.mean),
-        sigma=[np.asarray(s) for s in problem.sigma],
-        band_centers=problem.bands.centers,
-    )
-    provenance = Provenance(
-        recordings=[str(r.recording.path) for r in rigs],
-        seed=options.seed,
-        wall_time=wall,
-        platform=platform,
-    )
+    spectra = spectra_of(problem, lap.mean, problem.sigma)
+    provenance = provenance_of(rigs, options, wall, platform)
     state = FittedState(options, z, cov, noise=lap.noise, problem=problem)
     return FitResult(estimates, statistics, spectra, provenance, state)
 

@@ -37,11 +37,12 @@ from .result import (
     FitResult,
     FittedState,
     ParameterEstimate,
-    Provenance,
-    Spectra,
     Statistics,
     estimate,
     estimates_of,
+    map_params_of,
+    provenance_of,
+    spectra_of,
     with_groups,
 )
 
@@ -133,19 +134,12 @@ def learned_result(
     mean, total = (np.asarray(x) for x in like.moments(jnp.asarray(z)))
     chi2_rec, _ = like.chi2_terms(jnp.asarray(z))
     lubrications = [r.recording.operating.lubrication for r in rigs]
-    p = len(problem.specs)
     converged = fit.optimum.converged
     estimates = Estimates(
         parameters=with_groups(estimates_of(problem, z, z_lo, z_hi, lubrications), groups[0]),
         names=[s.name for s in problem.specs],
         correlation=cov / np.outer(sd, sd),
-        map_params=[
-            {
-                k: float(v)
-                for k, v in problem.params_for(jnp.asarray(z), i, jnp.zeros(p)).as_dict().items()
-            }
-            for i in range(problem.n_rec)
-        ],
+        map_params=map_params_of(problem, z),
         profile={"threshold": CHI2_95, "likelihood": "learned"},
         profiles={**profiles_of(problem, fit), **groups[1]},
     )
@@ -158,19 +152,8 @@ def learned_result(
         message=("converged" if converged else "step limit reached")
         + " (quasi-Newton on the learned likelihood)",
     )
-    spectra = Spectra(
-        measured=[np.asarray(d) for d in problem.data],
-        fitted=list(mean),
-        sigma=[np.sqrt(np.diag(c)) for c in total],
-        band_centers=problem.bands.centers,
-    )
-    provenance = Provenance(
-        recordings=[str(r.recording.path) for r in rigs],
-        seed=options.seed,
-        wall_time=wall,
-        platform=platform,
-        likelihood=info,
-    )
+    spectra = spectra_of(problem, mean, [np.sqrt(np.diag(c)) for c in total])
+    provenance = provenance_of(rigs, options, wall, platform, likelihood=info)
     state = FittedState(options, z, cov, problem=problem, learned=learned)
     return FitResult(estimates, statistics, spectra, provenance, state)
 

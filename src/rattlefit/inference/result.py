@@ -287,6 +287,39 @@ class FitResult:
         }
 
 
+def map_params_of(problem: Problem, z) -> list[dict[str, float]]:
+    """Each recording's :class:`~rattlefit.physics.model.RattleParams` at ``z`` as a dict
+    (:attr:`Estimates.map_params`)."""
+    zeros = jnp.zeros(len(problem.specs))
+    return [
+        {k: float(v) for k, v in problem.params_for(jnp.asarray(z), i, zeros).as_dict().items()}
+        for i in range(problem.n_rec)
+    ]
+
+
+def spectra_of(problem: Problem, fitted, sigma) -> Spectra:
+    """The :class:`Spectra` of ``problem``'s recordings: its data, and the model's mean
+    ``fitted`` and spread ``sigma`` at the optimum (each (R, F))."""
+    return Spectra(
+        measured=[np.asarray(d) for d in problem.data],
+        fitted=[np.asarray(f) for f in fitted],
+        sigma=[np.asarray(s) for s in sigma],
+        band_centers=problem.bands.centers,
+    )
+
+
+def provenance_of(rigs, options: FitOptions, wall: float, platform: dict, likelihood=None):
+    """The :class:`Provenance` of a fit of ``rigs`` (:class:`~rattlefit.rig.RigSetup`) with
+    ``options`` that took ``wall`` seconds on ``platform``."""
+    return Provenance(
+        recordings=[str(r.recording.path) for r in rigs],
+        seed=options.seed,
+        wall_time=wall,
+        platform=platform,
+        likelihood=likelihood or {},
+    )
+
+
 def identified_ratio(name: str) -> float:
     """The widest interval (upper/lower) that counts as identified: :data:`IDENTIFIED_RATIO`,
     cubed for a squeeze-film group (∝ a³ for a short film, :mod:`rattlefit.inference.group`)."""
