@@ -42,7 +42,7 @@ RECIPES: dict[str, tuple[str, float]] = {
         8,
     ),
     "learned_time.json": (
-        "python benchmarks/learned_time.py pairII_boundary_65.6_20pct_16Hz.h5 "
+        "python benchmarks/learned_time.py data/pairII_boundary_65.6_20pct_16Hz.h5 "
         "--json benchmarks/results/learned_time.json",
         6,
     ),
