@@ -18,7 +18,7 @@ import pytest
 from scipy import stats
 
 import rattlefit as rf
-from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose, judging_noise
+from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
 from rattlefit.inference.design import (
     interval_factors,
     learned_information,
@@ -301,7 +301,7 @@ def test_the_learned_noise_model_holds_the_simulators_spread(learned_fit):
     # come in the fit's covariance count), the floor and the Monte Carlo error of a mean of
     # n_realisations added as the synthetic likelihood adds them
     _, result, _ = learned_fit
-    noise, problem = judging_noise(result, result.state.problem)
+    noise, problem = result.state.noise, result.state.problem
     rng = np.random.default_rng(5)
     n = result.state.options.n_covariance_realisations
     ens = np.concatenate(

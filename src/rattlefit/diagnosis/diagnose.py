@@ -59,14 +59,11 @@ import dataclasses
 import time
 from collections.abc import Callable, Sequence
 
-import jax.numpy as jnp
 import numpy as np
 from scipy import stats
 
 from ..errors import RattlefitError
 from ..inference.identify import identify
-from ..inference.learned import learned_noise
-from ..inference.noise import NoiseModel
 from ..inference.options import FitOptions
 from ..inference.parameters import Z_END
 from ..inference.problem import release_states
@@ -112,8 +109,8 @@ class DiagnoseOptions:
 
     effects : names of the effects to try (:data:`rattlefit.physics.effects.EFFECTS`).
     fit : options of the identification that the diagnosis starts from (its seed seeds the
-        diagnosis too, its likelihood is the one the diagnosis judges with:
-        :func:`judging_noise`); by default :meth:`FitOptions.optimum_only`, since the
+        diagnosis too, and its likelihood's noise model at the optimum is the one the
+        diagnosis judges with); by default :meth:`FitOptions.optimum_only`, since the
         diagnosis uses the optimum and its noise model, not the intervals.
     iterations : Gauss–Newton iterations per effect.
     base_iterations : most Gauss–Newton iterations of the re-fit without effects that moves
@@ -217,24 +214,6 @@ def outcome_phrase(o: EffectOutcome) -> str:
     )
 
 
-def judging_noise(baseline: FitResult, problem) -> tuple[NoiseModel, object]:
-    """The noise model the diagnosis judges with, and ``problem`` with its band spread: the
-    identification's own on the synthetic likelihood; on the learned likelihood, the learned
-    density's covariance at the optimum (:func:`~rattlefit.inference.learned.learned_noise`),
-    so that the gap and every candidate are judged with the likelihood the fit was made on.
-    Raises :class:`~rattlefit.errors.RattlefitError` when ``baseline`` holds neither (a fit
-    read back from its JSON)."""
-    if baseline.state.learned is not None:
-        noise = learned_noise(baseline)
-        return noise, dataclasses.replace(problem, sigma=jnp.asarray(noise.sigma))
-    if baseline.state.noise is None:
-        raise RattlefitError(
-            "diagnose: the baseline fit carries neither a noise model nor a learned likelihood "
-            "(identify in this process)"
-        )
-    return baseline.state.noise, problem
-
-
 def trial_of(
     recordings: Sequence[Recording],
     baseline: FitResult,
@@ -246,7 +225,12 @@ def trial_of(
     every effect of ``options``; each with its ``static`` fields), noise model, fresh release
     states for the final comparison and validation states (the fit's covariance count), from
     two children spawned from the fit's seed."""
-    noise, base = judging_noise(baseline, baseline.problem_for(recordings))
+    noise, base = baseline.state.noise, baseline.problem_for(recordings)
+    if noise is None:
+        raise RattlefitError(
+            "diagnose: the baseline fit carries no noise model (a fit read back from its JSON: "
+            "identify in this process)"
+        )
     names = options.effects if names is None else names
     problem, candidates = candidate_problem(base, names, static)
     fit_options = baseline.state.options

@@ -154,26 +154,26 @@ def learned_result(
     )
     spectra = spectra_of(problem, mean, [np.sqrt(np.diag(c)) for c in total])
     provenance = provenance_of(rigs, options, wall, platform, likelihood=info)
-    state = FittedState(options, z, cov, problem=problem, learned=learned)
+    noise = learned_noise(
+        total, options.n_realisations, statistics.chi2_recordings, int(learned.design.u.shape[0])
+    )
+    problem = dataclasses.replace(problem, sigma=jnp.asarray(noise.sigma))
+    state = FittedState(options, z, cov, noise=noise, problem=problem, learned=learned)
     return FitResult(estimates, statistics, spectra, provenance, state)
 
 
-def learned_noise(fit: FitResult) -> NoiseModel:
-    """The noise model of ``fit``, a fit on the learned likelihood, at its optimum: each
-    feature's spread and the features' correlation from the learned density's covariance
-    there (the recordings' whitening block-diagonal, since recordings are independent), each
-    spread widened by the Monte Carlo error of a mean of ``fit.state.options.n_realisations``
-    realisations, as the synthetic likelihood's is. No Birge inflation (``row_scale`` one):
-    the learned density's spread is checked against fresh simulations instead
-    (:mod:`rattlefit.likelihood.check`). ``sigma_dof`` is the simulations it was learned
-    from per recording. Raises :class:`~rattlefit.errors.RattlefitError` when ``fit`` holds
-    no learned likelihood."""
-    if fit.state.learned is None:
-        raise RattlefitError("learned_noise: the fit was not made on a learned likelihood")
-    _, cov = (np.asarray(x) for x in fit.state.learned.likelihood.moments(jnp.asarray(fit.state.z)))
+def learned_noise(total, n_realisations: int, chi2_recordings, simulations: int) -> NoiseModel:
+    """The noise model of a fit on the learned likelihood, from the learned density's feature
+    covariance ``total`` (R, F, F) at the optimum: each feature's spread and the features'
+    correlation (the whitening block-diagonal, since recordings are independent), each spread
+    widened by the Monte Carlo error of a mean of ``n_realisations`` realisations, as the
+    synthetic likelihood's is. No Birge inflation (``row_scale`` one): the learned density's
+    spread is checked against fresh simulations instead (:mod:`rattlefit.likelihood.check`).
+    ``chi2_recordings`` (R,) are each recording's χ² there, ``simulations`` what it was
+    learned from per recording (its ``sigma_dof``)."""
+    cov = np.asarray(total)
     n_rec, n_feat = cov.shape[:2]
-    widen = 1.0 + 1.0 / fit.state.options.n_realisations
-    sigma = np.sqrt(np.diagonal(cov, axis1=1, axis2=2) * widen)
+    sigma = np.sqrt(np.diagonal(cov, axis1=1, axis2=2) * (1.0 + 1.0 / n_realisations))
     whiten = np.zeros((n_rec * n_feat, n_rec * n_feat))
     for k in range(n_rec):
         sd = np.sqrt(np.diag(cov[k]))
@@ -181,11 +181,7 @@ def learned_noise(fit: FitResult) -> NoiseModel:
         sl = slice(k * n_feat, (k + 1) * n_feat)
         whiten[sl, sl] = np.linalg.inv(np.linalg.cholesky(corr))
     return NoiseModel(
-        sigma,
-        whiten,
-        np.ones(n_rec * n_feat),
-        np.asarray(fit.statistics.chi2_recordings, dtype=float),
-        int(fit.state.learned.design.u.shape[0]),
+        sigma, whiten, np.ones(n_rec * n_feat), np.asarray(chi2_recordings, float), simulations
     )
 
 

@@ -204,12 +204,12 @@ class FittedState:
     options : the :class:`~rattlefit.inference.options.FitOptions` of the fit.
     z : (P,) the optimum in the unconstrained coordinates.
     covariance_z : (P, P) Laplace covariance in z.
-    noise : the synthetic likelihood's
-        :class:`~rattlefit.inference.noise.NoiseModel` fixed at the optimum; None on the
-        learned likelihood or when read back from JSON.
+    noise : the :class:`~rattlefit.inference.noise.NoiseModel` fixed at the optimum (on
+        the learned likelihood, from its covariance there:
+        :func:`~rattlefit.inference.learned.learned_noise`); None when read back from JSON.
     problem : the fit's :class:`~rattlefit.inference.problem.Problem` at the optimum (its
-        realisations and band spread); None when the fit did not run in this process
-        (:meth:`problem_for` rebuilds it).
+        realisations and band spread, the noise model's ``sigma``); None when the fit did
+        not run in this process (:meth:`problem_for` rebuilds it).
     learned : the :class:`~rattlefit.likelihood.store.Learned` likelihood of a fit on it
         (the likelihood, its design, test-point key and seed); None otherwise.
     """
