@@ -508,6 +508,109 @@ def test_the_size_interval_is_where_the_profile_rises_by_the_threshold(monkeypat
         assert np.log10(0.05 / lo) == pytest.approx(half, rel=1e-9)
 
 
+@pytest.mark.parametrize(("flat", "relevant"), [(False, True), (True, False)])
+def test_a_size_the_profile_cannot_tell_from_none_is_not_relevant(monkeypatch, flat, relevant):
+    # The profile runs down to the absent end and through the relevance floor (5 % of the
+    # typical friction coefficient 0.05): a χ² that rises by 100 per decade² about 0.05
+    # keeps the interval within a fifth of a decade, above the floor; a χ² as flat below the
+    # fitted size as at it (a damping of 3e-5 closing a gap by moving a and T_b) reaches the
+    # absent end, and the effect is not worth naming, whatever share of the gap it closed.
+    from rattlefit.diagnosis import size as size_module
+
+    rec, _ = _dry_pair2([])
+    base, _ = build_problem([rec], FitOptions.quick(), np.random.default_rng(BUILD_SEED))
+    problem, candidates = candidate_problem(base, ("flank_friction",))
+    i = candidates["flank_friction"][0]
+    spec = problem.specs[i]
+    trial = Trial(problem, None, np.asarray(base.data), np.zeros((1, 24, 2)), 28, 2, [], candidates)
+    z_fit = np.zeros(len(problem.specs))
+    z_fit[i] = spec.z_of(0.05)
+    monkeypatch.setattr(size_module, "polish_profile", lambda rows, zs, *a, **kw: zs)
+    profiled = []
+
+    def chi2s(trial, zs):
+        t = np.array([np.log10(float(spec.value(z[i])) / 0.05) for z in zs])
+        profiled.extend(10.0**t * 0.05)
+        return 20.0 + 100.0 * np.square(np.maximum(t, 0.0) if flat else t)
+
+    monkeypatch.setattr(size_module, "chi2s", chi2s)
+    intervals = {
+        k: (lo, hi)
+        for k, (_, lo, hi) in size_module.size_intervals(
+            trial, "flank_friction", z_fit, 20.0
+        ).items()
+    }
+    floor = size_module.relevance_floor("flank_friction")
+    assert floor == pytest.approx(0.05 * 0.05)
+    assert min(profiled) == pytest.approx(spec.lower, rel=1e-3)
+    assert any(v == pytest.approx(floor) for v in profiled)
+    assert size_module.relevant(intervals, "flank_friction", trial) == relevant
+    assert (intervals["coefficient"][0] == pytest.approx(spec.lower, rel=1e-3)) == flat
+
+
+@pytest.mark.parametrize("second_closes", [True, False])
+def test_a_candidate_too_small_to_tell_from_none_is_not_named(monkeypatch, second_closes):
+    # The verdict would name mesh damping, which closes the most; its profile reaches its
+    # absent end, so it is not named: the next candidate is sized and named when it is of a
+    # relevant size, and otherwise the gap is unexplained, the sentence saying why.
+    from test_report import _result
+
+    diagnose_module = importlib.import_module("rattlefit.diagnosis.diagnose")
+    from rattlefit.diagnosis.verdict import Evidence, decide
+
+    damping = dataclasses.replace(
+        _outcome("mesh_damping", 400.0, 30.0, 0.3),
+        values={"damping_ratio": 3e-5},
+        units={"damping_ratio": "1"},
+    )
+    friction = dataclasses.replace(
+        _outcome(
+            "speed_dependent_drag",
+            400.0,
+            35.0 if second_closes else 200.0,
+            0.2 if second_closes else 1e-20,
+        ),
+        values={"coefficient": 4e-4},
+        units={"coefficient": "N m s/rad"},
+    )
+    sizes = {"mesh_damping": (3e-5, 1e-7, 2e-4), "speed_dependent_drag": (4e-4, 2e-4, 8e-4)}
+
+    def sized(trial, named, fitted):
+        best, lo, hi = sizes[named.name]
+        key = next(iter(named.values))
+        relevant = lo >= {"mesh_damping": 0.0035, "speed_dependent_drag": 2.5e-5}[named.name]
+        return dataclasses.replace(
+            named, values={key: best}, intervals={key: (lo, hi)}, relevant=relevant
+        )
+
+    monkeypatch.setattr(diagnose_module, "sized", sized)
+    evidence = Evidence(band_gap=True)
+    outcomes = diagnose_module.with_interval(
+        None, [damping, friction], evidence, {}, lambda s: None
+    )
+    verdict = decide(outcomes, evidence)
+    assert not next(o for o in outcomes if o.name == "mesh_damping").relevant
+    if second_closes:
+        assert verdict.effects == ("speed_dependent_drag",)
+        assert verdict.explaining.intervals["coefficient"] == (2e-4, 8e-4)
+    else:
+        assert verdict.kind == "unexplained"
+        diag = Diagnosis(
+            baseline=_result(400.0, 28),
+            residuals=np.zeros((1, 28)),
+            band_centers=np.zeros(28),
+            band_edges=np.zeros(29),
+            outcomes=outcomes,
+            seed=0,
+            wall_time=0.0,
+            refit_costs=(1.0, 1.0),
+            chi2_without=400.0,
+        )
+        sentence = verdict_sentence(diag)
+        assert "mesh_damping closes it only at a size that cannot be told from none" in sentence
+        assert "times the typical 0.07" in sentence
+
+
 @pytest.mark.parametrize("validation, kept", [((50.0, 20.0), 1), ((20.0, 50.0), 0)])
 def test_the_refit_without_effects_kept_is_the_one_better_on_the_validation_set(
     monkeypatch, validation, kept

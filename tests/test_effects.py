@@ -316,6 +316,12 @@ def test_absent_effects_leave_the_vector_field_alone(pair2, name):
     for field, (unit, lo, hi) in cls.ranges.items():
         assert float(getattr(fx.absent(name), field)) == lo < hi
         assert unit
+    # its size (the first ranged field) has a physical reference inside its range, and the
+    # smallest size a diagnosis names lies well (a decade and more) above the absent end
+    from rattlefit.diagnosis.size import relevance_floor
+
+    (_, lo, hi), (typical, source) = next(iter(cls.ranges.values())), cls.typical
+    assert 10 * lo <= relevance_floor(name) < typical < hi and source
 
 
 def acceleration_at(model, params, drive, ts, states):

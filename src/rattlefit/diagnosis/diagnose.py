@@ -80,7 +80,7 @@ from .outcome import EffectOutcome
 from .pairs import pair_candidates, pair_name, settled_single, try_pair
 from .result import Diagnosis, baseline_warnings
 from .screening import distinct_rows, free_alternatives, screen
-from .size import size_intervals
+from .size import relevant, size_intervals
 from .trial import (
     Trial,
     candidate_problem,
@@ -345,25 +345,45 @@ def try_pairs(
     return outcomes, out
 
 
+def sized(trial: Trial, named: EffectOutcome, fitted: dict) -> EffectOutcome:
+    """``named`` with its size estimated with an interval
+    (:func:`~rattlefit.diagnosis.size.size_intervals`): its ``values`` hold the profile's
+    estimate, its ``intervals`` the 95 % interval, ``relevant`` whether that interval stays
+    above the relevance floor (:func:`~rattlefit.diagnosis.size.relevant`)."""
+    profiled = size_intervals(trial, named.name, fitted[named.name], named.chi2_with)
+    intervals = {k: (lo, hi) for k, (_, lo, hi) in profiled.items()}
+    return dataclasses.replace(
+        named,
+        values={**named.values, **{k: best for k, (best, _, _) in profiled.items()}},
+        intervals=intervals,
+        relevant=relevant(intervals, named.name, trial),
+    )
+
+
+def to_size(outcomes: list[EffectOutcome], evidence: Evidence) -> list[EffectOutcome]:
+    """The band candidates the verdict rests on whose size is not yet profiled: the one it
+    names, or every one it cannot tell apart
+    (:attr:`~rattlefit.diagnosis.verdict.Verdict.indistinguishable`)."""
+    verdict = decide(outcomes, evidence)
+    rest = verdict.indistinguishable or ([verdict.explaining] if verdict.explaining else [])
+    return [o for o in rest if not o.intervals]
+
+
 def with_interval(
     trial: Trial, outcomes: list[EffectOutcome], evidence: Evidence, fitted: dict, say
 ) -> list[EffectOutcome]:
-    """``outcomes`` with the size of the band candidate the verdict names
-    (:func:`~rattlefit.diagnosis.verdict.decide`) estimated with an interval
-    (:func:`~rattlefit.diagnosis.size.size_intervals`): its ``values`` hold the profile's
-    estimate, its ``intervals`` the 95 % interval. Sizing changes nothing the verdict is
-    decided on."""
-    named = decide(outcomes, evidence).explaining
-    if named is None:
-        return outcomes
-    say(f"profiling the size of {named.name} …")
-    profiled = size_intervals(trial, named.name, fitted[named.name], named.chi2_with)
-    sized = dataclasses.replace(
-        named,
-        values={**named.values, **{k: best for k, (best, _, _) in profiled.items()}},
-        intervals={k: (lo, hi) for k, (_, lo, hi) in profiled.items()},
-    )
-    return [sized if o is named else o for o in outcomes]
+    """``outcomes`` with the band candidates the verdict rests on (:func:`to_size`) sized
+    (:func:`sized`). A candidate whose interval reaches below its relevance floor is no
+    longer nameable, nor a rival of another: the verdict is decided again, and what it then
+    rests on is sized in turn (each candidate at most once)."""
+    while pending := to_size(outcomes, evidence):
+        for named in pending:
+            say(f"profiling the size of {named.name} …")
+            done = sized(trial, named, fitted)
+            if not done.relevant:
+                say(f"  {named.name}: its interval reaches below the size worth naming")
+            outcomes = [done if o is named else o for o in outcomes]
+    return outcomes
 
 
 def drive_cycle(trial: Trial, z_base, recordings, baseline: FitResult, level: float, say):

@@ -32,6 +32,10 @@ class EffectOutcome:
         of the χ² over it (:mod:`rattlefit.diagnosis.size`): key → (lower, upper); computed
         for the effects a verdict names (whose ``values`` then hold the profile's estimate),
         empty otherwise.
+    relevant : False when the size was profiled and its interval reaches below the effect's
+        relevance floor, a share of its typical size
+        (:func:`~rattlefit.diagnosis.size.relevance_floor`): the band spectrum cannot tell
+        it from no effect, and it is not named. True until profiled.
 
     Two effects fitted together have the name ``"<effect>+<effect>"``, their values keyed
     ``"<effect>.<field>"``, and:
@@ -57,6 +61,7 @@ class EffectOutcome:
     moves: dict[str, tuple[float, float]] = dataclasses.field(default_factory=dict)
     failure: str = ""
     intervals: dict[str, tuple[float, float]] = dataclasses.field(default_factory=dict)
+    relevant: bool = True
     p_beyond: float = float("nan")
     beyond_single: bool = False
 

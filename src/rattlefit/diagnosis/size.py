@@ -8,6 +8,12 @@ the sizes whose χ² rise stays below :func:`~rattlefit.inference.profile.profil
 (χ²₁'s quantile plus the Monte Carlo noise of a difference of two χ²s), after scaling the
 rise by the misfit per degree of freedom that remains where it exceeds one (as the F-test
 does); the crossing is interpolated in the square root of the rise.
+
+The profile also holds the size's absent end and its *relevance floor*,
+:data:`RELEVANT_SHARE` of the effect's typical size (``Effect.typical``, a physical
+reference): an effect whose interval reaches below the floor cannot be told from no effect
+by the band spectrum, whatever share of the gap its fit closed (:func:`relevant`), and a
+diagnosis does not name it.
 """
 
 from __future__ import annotations
@@ -18,19 +24,33 @@ import math
 import numpy as np
 
 from ..inference.profile import polish_profile, profile_interval, profile_threshold
+from ..physics.effects import effect_class
 from .trial import Trial, chi2s, difference_sd, field_key, refit_steps, residual_rows
 
 #: Where the size is profiled: decades off its fitted value (clipped to its range); close
 #: in, since a size the band spectrum pins can be pinned to a few per cent.
 SIZE_DECADES = (-1.0, -0.5, -0.2, -0.07, 0.07, 0.2, 0.5, 1.0)
+#: An effect named from the band spectrum must have the lower end of its size's 95 %
+#: interval at least this share of its typical size (``Effect.typical``).
+RELEVANT_SHARE = 0.05
 
 
-def size_points(trial: Trial, i: int, z_fit) -> tuple[np.ndarray, np.ndarray]:
-    """``z_fit`` with the effect field at coordinate ``i`` moved by :data:`SIZE_DECADES`
+def relevance_floor(effect: str) -> float:
+    """The smallest size of ``effect``'s first field worth naming (SI):
+    :data:`RELEVANT_SHARE` of its typical size, or 0 when it declares none."""
+    typical = effect_class(effect).typical
+    return 0.0 if typical is None else RELEVANT_SHARE * typical[0]
+
+
+def size_points(trial: Trial, i: int, z_fit, floor: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """``z_fit`` with the effect field at coordinate ``i`` moved by :data:`SIZE_DECADES`, to
+    its absent end (its range's lower end) and to ``floor`` when that lies in the range
     (within its range, repeats dropped): the points (K, P) and their log10 sizes (K,)."""
     spec = trial.problem.specs[i]
     fitted = float(spec.value(z_fit[i]))
-    sizes = np.unique(np.clip(fitted * 10.0 ** np.asarray(SIZE_DECADES), spec.lower, spec.upper))
+    moved = fitted * 10.0 ** np.asarray(SIZE_DECADES)
+    ends = [spec.lower] + ([floor] if spec.lower < floor < spec.upper else [])
+    sizes = np.unique(np.clip(np.append(moved, ends), spec.lower, spec.upper))
     sizes = sizes[~np.isclose(sizes, fitted, rtol=1e-6)]
     points = np.repeat(np.asarray(z_fit, dtype=float)[None], len(sizes), axis=0)
     points[:, i] = [spec.z_of(float(v)) for v in sizes]
@@ -46,7 +66,8 @@ def size_interval(
     profile's least χ² (the fitted value or a profiled one). An end at a range's end or at
     the last value profiled is a bound."""
     spec = trial.problem.specs[i]
-    points, logs = size_points(trial, i, z_fit)
+    effect = next(n for n in name.split("+") if i in trial.candidates[n])
+    points, logs = size_points(trial, i, z_fit, relevance_floor(effect))
     held = [sorted([*trial.held(name), i])] * len(points)
     polished = polish_profile(
         functools.partial(residual_rows, trial),
@@ -79,3 +100,14 @@ def size_intervals(trial: Trial, name: str, z_fit, chi2_fit: float) -> dict[str,
         i = trial.candidates[effect][0]
         out[field_key(trial, name, i)] = size_interval(trial, name, i, z_fit, chi2_fit)
     return out
+
+
+def relevant(intervals: dict[str, tuple[float, float]], name: str, trial: Trial) -> bool:
+    """Every sized field of ``name`` (one effect, or two joined by ``+``) has the lower end of
+    its interval (``intervals``, key → (lower, upper) as :func:`size_intervals` keys them) at
+    or above its effect's :func:`relevance_floor`."""
+    for effect in name.split("+"):
+        key = field_key(trial, name, trial.candidates[effect][0])
+        if key in intervals and intervals[key][0] < relevance_floor(effect):
+            return False
+    return True

@@ -120,13 +120,15 @@ def seen_in_bands(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> froz
 
 
 def nameable(o: EffectOutcome, outcomes: Sequence[EffectOutcome], evidence: Evidence) -> bool:
-    """``o`` could be named: supported; for an effect with a model-free test
+    """``o`` could be named: supported; of a relevant size (``o.relevant``: its interval, once
+    profiled, stays above its relevance floor); for an effect with a model-free test
     (:data:`~rattlefit.diagnosis.evidence.FOUND_ONLY`), found by that test too; holding every
     effect of :func:`seen_in_bands` (another effect is named beside a seen one only when the
     two together close clearly more than the seen one alone); two effects together only when
     they close clearly more than the better alone (``beyond_single``)."""
     return (
         o.supported
+        and o.relevant
         and all(n not in FOUND_ONLY or n in evidence.seen for n in o.effects)
         and seen_in_bands(outcomes, evidence) <= set(o.effects)
         and (len(o.effects) == 1 or o.beyond_single)

@@ -318,13 +318,18 @@ class Effect(eqx.Module):
     and ``mechanism`` (the physics it stands for, shared by candidates that are other forms
     of one mechanism, e.g. ``"dissipation in contact"``; default: its name). The lower ends
     of the other fields' ranges stand for the effect being absent, whatever the shape fields
-    are. :mod:`rattlefit.physics.effects` holds the catalogue.
+    are. A fifth, ``typical``, is the physical reference a fitted size is stated against:
+    (typical value of the first ranged field in its unit, where that value comes from); a
+    diagnosis names an effect from the band spectrum only when the lower end of its size's
+    interval reaches a share of it (:data:`rattlefit.diagnosis.size.RELEVANT_SHARE`), and
+    None leaves the size unreferenced. :mod:`rattlefit.physics.effects` holds the catalogue.
     """
 
     name: ClassVar[str] = "effect"
     mechanism: ClassVar[str | None] = None
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {}
     shape_fields: ClassVar[tuple[str, ...]] = ()
+    typical: ClassVar[tuple[float, str] | None] = None
     states: ClassVar[int] = 0
     state_units: ClassVar[tuple[str, ...]] = ()
 

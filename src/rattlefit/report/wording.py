@@ -8,6 +8,7 @@ from ..diagnosis.evidence import Finding
 from ..diagnosis.outcome import EffectOutcome
 from ..diagnosis.result import Diagnosis
 from ..features.orders import AngleTest
+from ..physics.effects import effect_class
 
 
 def finding_size(t: AngleTest) -> str:
@@ -25,9 +26,20 @@ def finding_phrase(f: Finding) -> str:
     return f"{f.effect} ({f.test.name}: {finding_size(f.test)}, p = {f.test.p_value:.2g})"
 
 
+def typical_phrase(effect: str, value: float) -> str:
+    """``value`` of ``effect``'s size against its typical size (``Effect.typical``), e.g.
+    ``3.2 times the typical 0.05 (a mean friction coefficient …)``; empty without one."""
+    typical = effect_class(effect).typical
+    if typical is None:
+        return ""
+    size, source = typical
+    return f", {value / size:.2g} times the typical {size:.3g} ({source})"
+
+
 def size_phrase(o: EffectOutcome) -> str:
-    """The fitted sizes of ``o`` that have an interval, e.g.
-    ``coefficient 0.16 (95 %: 0.05–0.4)`` (lengths in µm)."""
+    """The fitted sizes of ``o`` that have an interval, each against its typical size, e.g.
+    ``coefficient 0.16 (95 %: 0.05–0.4), 3.2 times the typical 0.05 (…)`` (lengths in
+    µm)."""
     parts = []
     for key, value in o.values.items():
         if key not in o.intervals:
@@ -35,8 +47,25 @@ def size_phrase(o: EffectOutcome) -> str:
         lo, hi = o.intervals[key]
         unit, scale = ("µm", 1e6) if o.units[key] == "m" else (o.units[key], 1.0)
         unit = "" if unit == "1" else f" {unit}"
-        parts.append(f"{key} {scale * value:.3g}{unit} (95 %: {scale * lo:.3g}–{scale * hi:.3g})")
+        effect = key.split(".", 1)[0] if "." in key else o.name
+        parts.append(
+            f"{key} {scale * value:.3g}{unit} (95 %: {scale * lo:.3g}–{scale * hi:.3g})"
+            + typical_phrase(effect, value)
+        )
     return "; ".join(parts)
+
+
+def too_small_words(diag: Diagnosis) -> str:
+    """The clause on the candidates that close the band gap only at a size the band
+    spectrum cannot tell from none (their interval reaches below the relevance floor), or
+    empty."""
+    small = [o for o in diag.outcomes if o.intervals and not o.relevant]
+    if not small:
+        return ""
+    return "; " + "; ".join(
+        f"{o.name} closes it only at a size that cannot be told from none ({size_phrase(o)})"
+        for o in small
+    )
 
 
 def fit_words(diag: Diagnosis) -> str:
@@ -77,7 +106,10 @@ def unexplained_gap(diag: Diagnosis) -> str:
         else f"; the candidate that leaves the least misfit, {best.name}, leaves "
         f"χ² {best.chi2_with:.1f} (p = {best.p_after:.2g})"
     )
-    return f"A significant gap that no candidate explains: {fit_words(diag)}{tried}{cycle}"
+    return (
+        f"A significant gap that no candidate explains: {fit_words(diag)}{tried}"
+        f"{too_small_words(diag)}{cycle}"
+    )
 
 
 def explaining_phrase(diag: Diagnosis) -> str:

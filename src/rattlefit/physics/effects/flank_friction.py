@@ -26,6 +26,10 @@ class FlankFriction(Effect):
     name: ClassVar[str] = "flank_friction"
     mechanism: ClassVar[str] = "dissipation in contact"
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {"coefficient": ("1", 1e-6, 1.0)}
+    typical: ClassVar[tuple[float, str]] = (
+        0.05,
+        "a mean friction coefficient of lubricated steel gear flanks (0.03–0.08)",
+    )
 
     coefficient: Scalar = parameter_field()
     sliding_speed: float = eqx.field(static=True, default=1e-3)

@@ -44,6 +44,10 @@ class PitchPointFriction(Effect):
     name: ClassVar[str] = "pitch_point_friction"
     mechanism: ClassVar[str] = "dissipation in contact"
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {"coefficient": ("1", 1e-6, 1.0)}
+    typical: ClassVar[tuple[float, str]] = (
+        0.05,
+        "a mean friction coefficient of lubricated steel gear flanks (0.03–0.08)",
+    )
 
     coefficient: Scalar = parameter_field()
     pitch_point: float = eqx.field(static=True, default=0.5)

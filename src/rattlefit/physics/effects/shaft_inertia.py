@@ -52,6 +52,10 @@ class ShaftInertia(Effect):
         "inertia_ratio": ("1", 1e-7, 10.0),
         "frequency": ("Hz", 100.0, 2000.0),
     }
+    typical: ClassVar[tuple[float, str]] = (
+        1.0,
+        "a far inertia equal to the driven wheel's own",
+    )
     shape_fields: ClassVar[tuple[str, ...]] = ("frequency",)
     states: ClassVar[int] = 2
     state_units: ClassVar[tuple[str, ...]] = ("m", "m/s")

@@ -22,6 +22,11 @@ class SpeedDependentDrag(Effect):
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {
         "coefficient": ("N m s/rad", 1e-7, 1e-2)
     }
+    typical: ClassVar[tuple[float, str]] = (
+        5e-4,
+        "a drag that adds the paper's drag torque (0.025 N m) at the paper's mean driven "
+        "speed (about 50 rad/s)",
+    )
 
     coefficient: Scalar = parameter_field()
 

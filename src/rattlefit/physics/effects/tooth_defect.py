@@ -34,6 +34,10 @@ class ToothDefect(Effect):
 
     name: ClassVar[str] = "tooth_defect"
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {"depth": ("m", 1e-12, 3e-5)}
+    typical: ClassVar[tuple[float, str]] = (
+        1e-5,
+        "a pit or chip 10 µm deep",
+    )
 
     depth: Scalar = parameter_field()
     position: Scalar = parameter_field()

@@ -21,6 +21,10 @@ class ToothErrors(Effect):
 
     name: ClassVar[str] = "tooth_errors"
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {"amplitude": ("m", 1e-13, 3e-5)}
+    typical: ClassVar[tuple[float, str]] = (
+        5e-6,
+        "single-pitch deviations of about 5 µm (accuracy grade 6–7)",
+    )
 
     amplitude: Scalar = parameter_field()
     phase: Scalar = parameter_field()

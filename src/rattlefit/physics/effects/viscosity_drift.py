@@ -22,6 +22,10 @@ class ViscosityDrift(Effect):
 
     name: ClassVar[str] = "viscosity_drift"
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {"rate": ("1/s", 1e-6, 1.0)}
+    typical: ClassVar[tuple[float, str]] = (
+        1e-2,
+        "oil warming that lowers the viscosity by 1 % per second",
+    )
 
     rate: Scalar = parameter_field()
 
