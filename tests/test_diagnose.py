@@ -608,7 +608,7 @@ def test_a_candidate_too_small_to_tell_from_none_is_not_named(monkeypatch, secon
         )
         sentence = verdict_sentence(diag)
         assert "mesh_damping closes it only at a size that cannot be told from none" in sentence
-        assert "times the typical 0.07" in sentence
+        assert "× the typical 0.07 [" in sentence
 
 
 @pytest.mark.parametrize("validation, kept", [((50.0, 20.0), 1), ((20.0, 50.0), 0)])
@@ -736,12 +736,21 @@ def test_a_candidate_is_chosen_on_the_validation_states_not_on_the_fits_few(monk
             "iterations": 3,
         },
     )()
-    start, _, _ = screening_module.screen(trial, "flank_friction", np.zeros(3))
-    assert start[0] == 1.0  # the second-cheapest finalist: the lowest validation χ²
+    starts, _, _ = screening_module.screen(trial, "flank_friction", np.zeros(3))
+    # the second-cheapest finalist first (the lowest validation χ²), then the others by it
+    np.testing.assert_array_equal(starts[:, 0], [1.0, 2.0, 3.0, 0.0])
+    fitted_from = []
+
+    def fit(t, zs, held, f):
+        fitted_from.append(zs[:, 0].tolist())
+        return zs * 0 + f
+
     for fitted, kept in ((10.0, 10.0), (11.0, 1.0)):  # a fit better, and worse, out of sample
-        monkeypatch.setattr(diagnose_module, "refit", lambda t, z, held, f=fitted: z * 0 + f)
+        monkeypatch.setattr(diagnose_module, "refit_all", functools.partial(fit, f=fitted))
         z = diagnose_module.fit_effect(trial, "flank_friction", np.zeros(3), lambda m: None)
         assert z[0] == kept
+    # each fit starts from the best starts on the validation states
+    assert fitted_from[0] == [1.0, 2.0][: diagnose_module.CANDIDATE_STARTS]
 
 
 @pytest.mark.parametrize("settles_to_noise", [True, False])
@@ -772,7 +781,7 @@ def test_pairs_start_from_the_first_effect_fitted_until_settled(monkeypatch, set
         return _outcome(f"{first.name}+{second.name}", chi2_without, 1900.0, 1e-9), None
 
     monkeypatch.setattr(diagnose_module, "try_pair", fake_pair)
-    trial = type("T", (), {"held": lambda self, name: [], "base_iterations": 12})()
+    trial = type("T", (), {"held": lambda self, name, **kw: [], "base_iterations": 12})()
     fitted = {"flank_friction": np.zeros(3), "mesh_damping": np.zeros(3)}
     diag = _diagnosis_of([friction, damping], 55010.0)
     outcomes, pairs = diagnose_module.try_pairs(
@@ -786,6 +795,63 @@ def test_pairs_start_from_the_first_effect_fitted_until_settled(monkeypatch, set
         assert [p.name for p in pairs] == ["flank_friction+mesh_damping"]
         assert started[0][0].chi2_with == 1966.0  # judged against the settled single
         np.testing.assert_array_equal(started[0][1], np.ones(3))  # and started from it
+
+
+def test_the_best_candidates_that_leave_a_misfit_are_fitted_on_with_the_nuisances_free(
+    monkeypatch,
+):
+    # Four candidates: friction leaves noise (nothing to gain), the drag and the damping leave
+    # a significant misfit and are fitted on until settled (the drag settling to noise), the
+    # shaft leaves more; only the best CONTENDERS are settled, the nuisances free, and the
+    # pairs do not settle them again.
+    from rattlefit.diagnosis import pairs as pairs_module
+
+    diagnose_module = importlib.import_module("rattlefit.diagnosis.diagnose")
+    friction = _outcome("flank_friction", 400.0, 25.0, 0.5)
+    drag = _outcome("speed_dependent_drag", 400.0, 137.0, 1e-15)
+    damping = _outcome("mesh_damping", 400.0, 150.0, 1e-16)
+    shaft = _outcome("shaft_compliance", 400.0, 300.0, 1e-40)
+    helds, judged = [], {"speed_dependent_drag": 30.0, "mesh_damping": 149.0}
+
+    def path(trial, z, held, iterations):
+        helds.append(held)
+        return z[None] + 1
+
+    monkeypatch.setattr(pairs_module, "settled_path", path)
+    monkeypatch.setattr(pairs_module, "validated", lambda t, zs: (len(zs) - 1, None))
+    monkeypatch.setattr(
+        pairs_module,
+        "judge_effect",
+        lambda t, name, c, z, level: _outcome(name, 400.0, judged[name], 0.3),
+    )
+    monkeypatch.setattr(pairs_module, "moves", lambda *a: {})
+
+    def held(self, name, *, nuisances=True):
+        return [0, 1] if nuisances else [0]
+
+    trial = type("T", (), {"held": held, "base_iterations": 12})()
+    fitted = {o.name: np.zeros(3) for o in (friction, drag, damping, shaft)}
+    outcomes, settled = diagnose_module.settle_contenders(
+        trial,
+        [friction, drag, damping, shaft],
+        fitted,
+        np.zeros(3),
+        400.0,
+        0.0025,
+        0.01,
+        lambda msg: None,
+    )
+    assert diagnose_module.CONTENDERS == 2
+    assert settled == {"speed_dependent_drag", "mesh_damping"}
+    assert helds == [[0], [0]]  # the nuisance (coordinate 1) free
+    assert [(o.name, o.chi2_with) for o in outcomes] == [
+        ("flank_friction", 25.0),
+        ("speed_dependent_drag", 30.0),
+        ("mesh_damping", 149.0),
+        ("shaft_compliance", 300.0),
+    ]
+    np.testing.assert_array_equal(fitted["speed_dependent_drag"], np.ones(3))
+    np.testing.assert_array_equal(fitted["shaft_compliance"], np.zeros(3))
 
 
 # The independent simulator's recordings (not rattlefit's model): a clean one, diagnosed with

@@ -90,6 +90,7 @@ from .trial import (
     judge_effect,
     moves,
     refit,
+    refit_all,
     residual_rows,
     settled_path,
     validated,
@@ -101,6 +102,11 @@ from .verdict import Evidence, decide
 #: (the mean keeps the realisations in the recording's regime, and a small set may hold
 #: none), and a candidate that makes the regime unique would be credited with that.
 FINAL_FACTOR = 2
+#: Each candidate is fitted from this many of its screening's best starts.
+CANDIDATE_STARTS = 2
+#: How many supported candidates that leave a significant misfit are fitted on until settled,
+#: the nuisances free (:func:`settle_contenders`).
+CONTENDERS = 2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -178,14 +184,16 @@ def refit_without_effects(trial: Trial, z, say) -> tuple[np.ndarray, float, floa
 
 def fit_effect(trial: Trial, name: str, z_base, say) -> np.ndarray:
     """Effect ``name`` screened from ``z_base`` (:func:`screen`) and fitted with ``a`` and
-    ``drag_torque``, the other effects held absent: the fitted point, or the start where
-    the fit is worse on the validation states (:func:`validated`)."""
-    best, cost_without, cost_best = screen(trial, name, z_base)
+    ``drag_torque`` from each of the :data:`CANDIDATE_STARTS` best starts, the other effects
+    held absent: of the fits and the best start, the point best on the validation states
+    (:func:`validated`)."""
+    starts, cost_without, cost_best = screen(trial, name, z_base)
+    starts = starts[:CANDIDATE_STARTS]
     say(
         f"  {name}: cost {cost_without:.1f} without, {cost_best:.1f} at the best start; "
-        f"fitting it with a and T_b ({trial.iterations} iterations) …"
+        f"fitting it with a and T_b from {len(starts)} starts ({trial.iterations} iterations) …"
     )
-    points = np.stack([refit(trial, best, trial.held(name)), best])
+    points = np.concatenate([refit_all(trial, starts, trial.held(name)), starts[:1]])
     return points[validated(trial, points)[0]]
 
 
@@ -289,6 +297,39 @@ def effects_to_try(
     return tried, skipped
 
 
+def settle_contenders(
+    trial: Trial,
+    outcomes: list[EffectOutcome],
+    fitted: dict,
+    z_base,
+    chi2_without: float,
+    level: float,
+    significance: float,
+    say,
+) -> tuple[list[EffectOutcome], frozenset[str]]:
+    """The :data:`CONTENDERS` supported single candidates with the least misfit that still
+    leave a significant one (``p_after`` below ``significance``), each fitted on until
+    settled with the nuisances free, as the model without effects was
+    (:func:`~rattlefit.diagnosis.pairs.settled_single`): a few Gauss–Newton steps from a
+    screened start can stop short of an effect's minimum. Returns the outcomes (each
+    settled one in its place, least misfit first) and the names settled; ``fitted`` gets
+    their new points."""
+    contenders = [
+        o
+        for o in outcomes
+        if o.supported and not o.failure and "+" not in o.name and o.p_after < significance
+    ][:CONTENDERS]
+    for first in contenders:
+        say(f"fitting {first.name} on until settled, the nuisances free …")
+        settled, fitted[first.name] = settled_single(
+            trial, first, fitted[first.name], z_base, chi2_without, level
+        )
+        say(f"  {outcome_phrase(settled)}")
+        outcomes = [settled if o is first else o for o in outcomes]
+    ordered = sorted(outcomes, key=lambda o: (bool(o.failure), o.chi2_with))
+    return ordered, frozenset(o.name for o in contenders)
+
+
 def try_effects(trial: Trial, names, z_base, chi2_without, level, say):
     """Each effect of ``names`` fitted and judged (:func:`try_effect`) at ``level``: the
     outcomes, the least misfit left first, and each effect's fitted point."""
@@ -309,23 +350,28 @@ def try_pairs(
     z_base,
     level: float,
     say,
+    settled_names: frozenset[str] = frozenset(),
 ):
     """When the band gap is significant (``evidence``) and the first candidate of
     :func:`~rattlefit.diagnosis.pairs.pair_candidates` (an effect the encoders found, else
     the best supported one) leaves a significant misfit: that candidate fitted on until
-    settled (:func:`~rattlefit.diagnosis.pairs.settled_single`) and, if it still leaves one,
-    fitted together with each of the next supported ones. Returns the single outcomes (the
+    settled (:func:`~rattlefit.diagnosis.pairs.settled_single`; not again when it is in
+    ``settled_names``) and, if it still leaves one, fitted together with each of the next
+    supported ones. Returns the single outcomes (the
     settled one in its place, least misfit first) and the pairs' outcomes; ``fitted`` gets
     every new point."""
     pairs = pair_candidates(outcomes, evidence.seen)
     if not evidence.band_gap or not pairs or pairs[0][0].p_after >= evidence.significance:
         return outcomes, []
     first = pairs[0][0]
-    say(f"fitting {first.name} on until settled before pairing it …")
-    settled, fitted[first.name] = settled_single(
-        trial, first, fitted[first.name], z_base, chi2_without, level
-    )
-    say(f"  {outcome_phrase(settled)}")
+    if first.name in settled_names:
+        settled = first
+    else:
+        say(f"fitting {first.name} on until settled before pairing it …")
+        settled, fitted[first.name] = settled_single(
+            trial, first, fitted[first.name], z_base, chi2_without, level
+        )
+        say(f"  {outcome_phrase(settled)}")
     outcomes = sorted(
         (settled if o is first else o for o in outcomes),
         key=lambda o: (bool(o.failure), o.chi2_with),
@@ -503,8 +549,13 @@ def diagnose(
         say(f"not fitting {name}: {why}")
     level = options.significance / max(len(tried), 1)  # Bonferroni
     outcomes, fitted = try_effects(trial, tried, z_base, chi2_without, level, say)
+    outcomes, settled = settle_contenders(
+        trial, outcomes, fitted, z_base, chi2_without, level, options.significance, say
+    )
     evidence = Evidence(tuple(found), bool(gap), cycle.significant, options.significance)
-    outcomes, pairs = try_pairs(trial, outcomes, evidence, chi2_without, fitted, z_base, level, say)
+    outcomes, pairs = try_pairs(
+        trial, outcomes, evidence, chi2_without, fitted, z_base, level, say, settled
+    )
     outcomes = with_interval(trial, outcomes + pairs, evidence, fitted, say)
     wall = time.perf_counter() - t_start
     say(f"done in {wall:.0f} s")

@@ -56,14 +56,16 @@ def pair_candidates(
 def settled_single(
     trial: Trial, single: EffectOutcome, z_fit, z_base, chi2_without: float, level: float
 ) -> tuple[EffectOutcome, object]:
-    """``single`` fitted on from its point ``z_fit`` until its cost settles
+    """``single`` fitted on from its point ``z_fit`` until its cost settles, the nuisances
+    free with their priors as in the re-fit without effects
     (:func:`~rattlefit.diagnosis.trial.settled_path`, at most ``trial.base_iterations``; of
     its points the one :func:`~rattlefit.diagnosis.trial.validated` chooses), and judged
     again: the better of the two outcomes and its point. A pair refits the first
     effect's coordinates beyond its single fit, so the second effect must beat the first fitted
     as far: in a narrow basin (dry flanks with friction) a few iterations leave the single
     short of its minimum, and any second dissipative effect then takes up the rest."""
-    path = settled_path(trial, z_fit, trial.held(single.name), iterations=trial.base_iterations)
+    held = trial.held(single.name, nuisances=False)
+    path = settled_path(trial, z_fit, held, iterations=trial.base_iterations)
     z = path[validated(trial, path)[0]]
     settled = judge_effect(trial, single.name, chi2_without, z, level)
     if settled.failure or not settled.chi2_with < single.chi2_with:

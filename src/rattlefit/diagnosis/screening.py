@@ -136,12 +136,12 @@ def shape_indices(trial: Trial, name: str) -> list[int]:
 
 
 def screen(trial: Trial, name: str, z_base) -> tuple[np.ndarray, float, float]:
-    """The best start for effect ``name`` from ``z_base`` (every effect absent), by
+    """The starts for effect ``name`` from ``z_base`` (every effect absent), by
     successive halving: every distinct screening point (:func:`screen_points`) costed on the
     first :data:`SCREEN_REALISATIONS` realisations, the :data:`SCREEN_FINALISTS` cheapest
     then compared on the validation states (:func:`~rattlefit.diagnosis.trial.validated`).
-    Returns the start, the cost at ``z_base`` and the start's (both on all the fit's
-    realisations)."""
+    Returns the finalists (F, P), the best on the validation states first, the cost at
+    ``z_base`` and the best finalist's (both on all the fit's realisations)."""
     points = screen_points(
         z_base, trial.candidates[name], trial.problem, shape=shape_indices(trial, name)
     )
@@ -149,6 +149,7 @@ def screen(trial: Trial, name: str, z_base) -> tuple[np.ndarray, float, float]:
     m = min(SCREEN_REALISATIONS, trial.problem.y0.shape[1])
     rough = costs(trial, starts, realisations=np.arange(m))
     finalists = starts[np.argsort(rough, kind="stable")[:SCREEN_FINALISTS]]
-    k, _ = validated(trial, finalists)
-    cost = costs(trial, np.stack([z_base, finalists[k]]))
-    return finalists[k], float(cost[0]), float(cost[1])
+    _, values = validated(trial, finalists)
+    finalists = finalists[np.argsort(values, kind="stable")]
+    cost = costs(trial, np.stack([z_base, finalists[0]]))
+    return finalists, float(cost[0]), float(cost[1])

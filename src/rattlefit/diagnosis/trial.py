@@ -121,15 +121,23 @@ def refit_steps(trial: Trial, zs) -> np.ndarray:
     return np.stack([np.minimum(trial.problem.fd_steps(np.asarray(z)), 1.0) for z in zs])
 
 
+def refit_all(trial: Trial, zs, held: list[int], *, iterations: int | None = None) -> np.ndarray:
+    """Each point of ``zs`` (K, P) after ``iterations`` (default ``trial.iterations``) of
+    damped Gauss–Newton on the coordinates not in ``held``, all K in one batch of
+    simulations: (K, P)."""
+    iterations = trial.iterations if iterations is None else iterations
+    zs = np.asarray(zs, dtype=float)
+    if not iterations:
+        return zs
+    rows = functools.partial(residual_rows, trial)
+    steps = refit_steps(trial, zs)
+    return polish_profile(rows, zs, [held] * len(zs), steps, iterations=iterations)
+
+
 def refit(trial: Trial, z, held: list[int], *, iterations: int | None = None) -> np.ndarray:
     """``z`` after ``iterations`` (default ``trial.iterations``) of damped Gauss–Newton on
-    the coordinates not in ``held``."""
-    iterations = trial.iterations if iterations is None else iterations
-    if not iterations:
-        return z
-    rows = functools.partial(residual_rows, trial)
-    steps = refit_steps(trial, z[None])
-    return polish_profile(rows, z[None], [held], steps, iterations=iterations)[0]
+    the coordinates not in ``held`` (:func:`refit_all` of one point)."""
+    return refit_all(trial, np.asarray(z)[None], held, iterations=iterations)[0]
 
 
 def settled_path(

@@ -28,17 +28,17 @@ def finding_phrase(f: Finding) -> str:
 
 def typical_phrase(effect: str, value: float) -> str:
     """``value`` of ``effect``'s size against its typical size (``Effect.typical``), e.g.
-    ``3.2 times the typical 0.05 (a mean friction coefficient …)``; empty without one."""
+    ``3.2 × the typical 0.05 [a mean friction coefficient …]``; empty without one."""
     typical = effect_class(effect).typical
     if typical is None:
         return ""
     size, source = typical
-    return f", {value / size:.2g} times the typical {size:.3g} ({source})"
+    return f", {value / size:.2g} × the typical {size:.3g} [{source}]"
 
 
 def size_phrase(o: EffectOutcome) -> str:
     """The fitted sizes of ``o`` that have an interval, each against its typical size, e.g.
-    ``coefficient 0.16 (95 %: 0.05–0.4), 3.2 times the typical 0.05 (…)`` (lengths in
+    ``coefficient 0.16 (95 %: 0.05–0.4), 3.2 × the typical 0.05 […]`` (lengths in
     µm)."""
     parts = []
     for key, value in o.values.items():
