@@ -618,7 +618,8 @@ def sample(
 @click.option(
     "--effects",
     default=None,
-    help="Comma-separated effects to try [default: all of rattlefit.physics.effects.EFFECTS].",
+    help="Comma-separated effects to try [default: rattlefit.physics.effects.DEFAULT_EFFECTS, "
+    "every effect but pitch_point_friction].",
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="Seeds the fit and tries.")
 @_quick_start_option
@@ -662,10 +663,10 @@ def diagnose(
     from .diagnosis.diagnose import diagnose as run
     from .inference.options import FitOptions
     from .io.recording import read_recording
-    from .physics.effects import EFFECTS
+    from .physics.effects import DEFAULT_EFFECTS, EFFECTS
     from .report import diagnosis_document, format_diagnosis, plot_diagnosis
 
-    names = tuple(EFFECTS) if effects is None else tuple(e.strip() for e in effects.split(","))
+    names = DEFAULT_EFFECTS if effects is None else tuple(e.strip() for e in effects.split(","))
     unknown = [n for n in names if n not in EFFECTS]
     if unknown or not names:
         raise click.BadParameter(

@@ -26,7 +26,8 @@ class CampaignOptions:
     diagnose : also diagnose each unit (:func:`rattlefit.diagnose`, starting from its
         identification and judged on its likelihood). Default False.
     effects : the effects diagnose tries (names of
-        :data:`rattlefit.physics.effects.EFFECTS`); None: all of them. Default None.
+        :data:`rattlefit.physics.effects.EFFECTS`); None: the default ones
+        (:data:`~rattlefit.physics.effects.DEFAULT_EFFECTS`). Default None.
     sample_steps : steps of each unit's posterior chain (:func:`rattlefit.sample`, started
         from its identification); 0: no sampling. Default 0.
     sample_walkers : emcee walkers of each chain. Default 16.

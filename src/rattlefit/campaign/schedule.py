@@ -40,7 +40,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from ..errors import RattlefitError
-from ..physics.effects import EFFECTS
+from ..physics.effects import DEFAULT_EFFECTS
 from ..util import atomic_write, write_json
 from ..version import __version__
 from .manifest import Manifest, Unit, read_manifest
@@ -122,7 +122,7 @@ def stage_keys(hashes: list[str], options: CampaignOptions, learned_from: str | 
         },
     )
     sample = {"fit": fit, "steps": options.sample_steps, "walkers": options.sample_walkers}
-    effects = options.effects or tuple(EFFECTS)
+    effects = options.effects or DEFAULT_EFFECTS
     return {
         "fit": fit,
         "sample": content_key("sample", sample),

@@ -292,8 +292,8 @@ def diagnose_stage(options: CampaignOptions, result, recordings) -> dict:
     (synthetic or learned), from the identification when it ran, else from one of its own
     with the same options."""
     from ..diagnosis.diagnose import DiagnoseOptions, diagnose
-    from ..physics.effects import EFFECTS
+    from ..physics.effects import DEFAULT_EFFECTS
     from ..report.wording import diagnosis_document
 
-    diag_options = DiagnoseOptions(effects=options.effects or tuple(EFFECTS), fit=options.fit)
+    diag_options = DiagnoseOptions(effects=options.effects or DEFAULT_EFFECTS, fit=options.fit)
     return {"doc": diagnosis_document(diagnose(recordings, diag_options, baseline=result))}

@@ -69,7 +69,7 @@ from ..inference.parameters import Z_END
 from ..inference.problem import release_states
 from ..inference.result import FitResult
 from ..io.recording import Recording
-from ..physics.effects import EFFECTS, effect_class
+from ..physics.effects import DEFAULT_EFFECTS, effect_class
 from ..reproducibility import platform_info
 from ..rig import setup
 from ..util import stamped
@@ -113,7 +113,8 @@ CONTENDERS = 2
 class DiagnoseOptions:
     """Options of :func:`diagnose`.
 
-    effects : names of the effects to try (:data:`rattlefit.physics.effects.EFFECTS`).
+    effects : names of the effects to try (of :data:`rattlefit.physics.effects.EFFECTS`;
+        default :data:`~rattlefit.physics.effects.DEFAULT_EFFECTS`).
     fit : options of the identification that the diagnosis starts from (its seed seeds the
         diagnosis too, and its likelihood's noise model at the optimum is the one the
         diagnosis judges with); by default :meth:`FitOptions.optimum_only`, since the
@@ -135,7 +136,7 @@ class DiagnoseOptions:
         are skipped: they could not be named).
     """
 
-    effects: tuple[str, ...] = tuple(EFFECTS)
+    effects: tuple[str, ...] = DEFAULT_EFFECTS
     fit: FitOptions = dataclasses.field(default_factory=FitOptions.optimum_only)
     iterations: int = 3
     base_iterations: int = 12

@@ -322,7 +322,9 @@ class Effect(eqx.Module):
     (typical value of the first ranged field in its unit, where that value comes from); a
     diagnosis names an effect from the band spectrum only when the lower end of its size's
     interval reaches a share of it (:data:`rattlefit.diagnosis.size.RELEVANT_SHARE`), and
-    None leaves the size unreferenced. :mod:`rattlefit.physics.effects` holds the catalogue.
+    None leaves the size unreferenced. ``tried_by_default`` (default True) False keeps the
+    effect out of a diagnosis' default candidates (it is tried on request).
+    :mod:`rattlefit.physics.effects` holds the catalogue.
     """
 
     name: ClassVar[str] = "effect"
@@ -330,6 +332,7 @@ class Effect(eqx.Module):
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {}
     shape_fields: ClassVar[tuple[str, ...]] = ()
     typical: ClassVar[tuple[float, str] | None] = None
+    tried_by_default: ClassVar[bool] = True
     states: ClassVar[int] = 0
     state_units: ClassVar[tuple[str, ...]] = ()
 

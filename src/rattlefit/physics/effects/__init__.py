@@ -38,6 +38,7 @@ from .tooth_errors import ToothErrors
 from .viscosity_drift import ViscosityDrift
 
 __all__ = [
+    "DEFAULT_EFFECTS",
     "EFFECTS",
     "DriveRipple",
     "FlankFriction",
@@ -73,6 +74,9 @@ EFFECTS: dict[str, type[Effect]] = {
         ShaftInertia,
     )
 }
+#: The effects a diagnosis tries unless told otherwise: every one but those that declare
+#: ``tried_by_default = False`` (another form of a mechanism the others cover, and costlier).
+DEFAULT_EFFECTS: tuple[str, ...] = tuple(n for n, c in EFFECTS.items() if c.tried_by_default)
 
 
 def absent(name: str, **static) -> Effect:

@@ -39,6 +39,10 @@ class PitchPointFriction(Effect):
     ratio of the true arm to r2 and of the normal to the tangential force. ``pitch_point``
     (default 0.5, mid-cycle: a pair of contact ratio one; K(θ1) of eq. 4 passes a pair's
     pitch point at s = frac(ε/2)) and ``width`` (default 0.02) are static, not fitted.
+
+    Not among a diagnosis' default candidates (``tried_by_default``): its mechanism,
+    dissipation in contact, is :class:`FlankFriction`'s and :class:`MeshDamping`'s, and its
+    reversal at every pitch point makes it the slowest effect to simulate.
     """
 
     name: ClassVar[str] = "pitch_point_friction"
@@ -48,6 +52,8 @@ class PitchPointFriction(Effect):
         0.05,
         "a mean friction coefficient of lubricated steel gear flanks (0.03–0.08)",
     )
+
+    tried_by_default: ClassVar[bool] = False
 
     coefficient: Scalar = parameter_field()
     pitch_point: float = eqx.field(static=True, default=0.5)
