@@ -123,6 +123,8 @@ def equivalent_film(pair: Pair, table, viscosity, a_max, h_oil, h_min) -> dict:
     ceiling = rattlefit_momentum(1.0, viscosity, radius, width)  # a = 1 m: saturated
     if m >= 0.999 * ceiling:
         return {"squeeze_momentum_N_s": m, "a_equivalent_m": None, "viscosity_factor": m / ceiling}
+    if m <= rattlefit_momentum(1e-9, viscosity, radius, width):  # an oil layer of nothing
+        return {"squeeze_momentum_N_s": m, "a_equivalent_m": 1e-9, "viscosity_factor": 1.0}
     a = optimize.brentq(
         lambda a: rattlefit_momentum(a, viscosity, radius, width) - m, 1e-9, 1.0, xtol=1e-12
     )
