@@ -854,11 +854,10 @@ def test_the_best_candidates_that_leave_a_misfit_are_fitted_on_with_the_nuisance
     np.testing.assert_array_equal(fitted["shaft_compliance"], np.zeros(3))
 
 
-# The independent simulator's recordings (not rattlefit's model): a clean one, diagnosed with
-# the default options and candidates, as a user would; and one
-# with run-out of the driven wheel, offered run-out and the two candidates that could mimic it
-# (TRIED), within CI's time. The run-out is found by the encoders' model-free test, so its
-# verdict does not hang on a band fit.
+# The independent simulator's recordings (not rattlefit's model): a clean one and one with
+# run-out of the driven wheel, each offered run-out and the two candidates that could mimic
+# it (TRIED), within CI's time (studies/diagnose_study.py offers every candidate). The run-out
+# is found by the encoders' model-free test, so its verdict does not hang on a band fit.
 SHARED_CLEAN = "pairI_dry_65.4_10pct_16Hz"
 SHARED_RUNOUT = "pairI_boundary_65.8_20pct_16Hz_runout"
 
@@ -870,7 +869,8 @@ def test_a_clean_independent_recording_names_no_effect(shared_recordings, shared
     # holds), so the verdict is none or, above that level, unexplained; never a gap beyond
     # what a model-form difference leaves (p > 0.001).
     assert shared_truth[SHARED_CLEAN]["unmodelled_effects"] == []
-    diag = diagnose([rf.read_recording(shared_recordings / f"{SHARED_CLEAN}.h5")])
+    rec = rf.read_recording(shared_recordings / f"{SHARED_CLEAN}.h5")
+    diag = diagnose([rec], DiagnoseOptions(effects=TRIED))
     assert diag.verdict.effects == () and diag.verdict.kind in ("none", "unexplained")
     assert not any(f.significant for f in diag.findings), verdict_sentence(diag)
     assert diag.gap_chi2[2] > 1e-3, verdict_sentence(diag)
