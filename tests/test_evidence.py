@@ -222,9 +222,9 @@ def test_the_drive_ripple_candidate_takes_the_order_its_test_found(boundary_pair
 def test_motor_cogging_at_order_24_from_the_second_rig_is_found_and_named():
     # The second rig (studies/second_rig, another simulator) with its servo's cogging torque
     # at order 24 of the motor's rotation inside the speed loop, at 14 Hz (where order 24 is
-    # no drive harmonic), and the same rig without it: the drive-order test finds order 24
-    # at about the acceleration the rig states, the verdict names a drive ripple and its
-    # candidate is fitted at order 24; the clean rig gives no finding at all.
+    # no drive harmonic): the drive-order test finds order 24 at about the acceleration the
+    # rig states, the verdict names a drive ripple and its candidate is fitted at order 24
+    # (clean recordings' silence is the shared recordings' and the smooth drive's tests).
     import dataclasses
     import sys
 
@@ -242,10 +242,7 @@ def test_motor_cogging_at_order_24_from_the_second_rig_is_found_and_named():
         rig=dataclasses.replace(drawn.rig, drive_frequency=at),
         clean_rig=dataclasses.replace(drawn.clean_rig, drive_frequency=at),
     )
-    clean = dataclasses.replace(cogging, rig=cogging.clean_rig, effects=())
-    (with_it, without), _ = validation_set.simulate_cases(
-        [cogging, clean], duration=2.0, burn_in=0.5
-    )
+    (with_it,), _ = validation_set.simulate_cases([cogging], duration=1.5, burn_in=0.5)
     found = findings([with_it], FAMILY)
     (ripple,) = [f for f in found if f.significant]
     assert ripple.effect == "drive_ripple" and ripple.test.detail["order"] == 24
@@ -253,4 +250,3 @@ def test_motor_cogging_at_order_24_from_the_second_rig_is_found_and_named():
     assert stated / 1.5 < ripple.test.amplitude < 1.5 * stated
     assert decide([], Evidence(tuple(found))).label == "drive_ripple"
     assert candidate_static(found) == {"drive_ripple": {"order": 24}}
-    assert not any(f.significant for f in findings([without], FAMILY))
