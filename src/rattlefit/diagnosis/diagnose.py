@@ -298,6 +298,22 @@ def effects_to_try(
     return tried, skipped
 
 
+def by_misfit(outcomes) -> list[EffectOutcome]:
+    """``outcomes`` judged first, the least misfit left first."""
+    return sorted(outcomes, key=lambda o: (bool(o.failure), o.chi2_with))
+
+
+def settle(trial: Trial, single: EffectOutcome, fitted: dict, z_base, chi2_without, level, say):
+    """``single`` fitted on until settled (:func:`~rattlefit.diagnosis.pairs.settled_single`)
+    from its point in ``fitted``, which gets the new point: the settled outcome."""
+    say(f"fitting {single.name} on until settled, the nuisances free …")
+    settled, fitted[single.name] = settled_single(
+        trial, single, fitted[single.name], z_base, chi2_without, level
+    )
+    say(f"  {outcome_phrase(settled)}")
+    return settled
+
+
 def settle_contenders(
     trial: Trial,
     outcomes: list[EffectOutcome],
@@ -321,14 +337,9 @@ def settle_contenders(
         if o.supported and not o.failure and "+" not in o.name and o.p_after < significance
     ][:CONTENDERS]
     for first in contenders:
-        say(f"fitting {first.name} on until settled, the nuisances free …")
-        settled, fitted[first.name] = settled_single(
-            trial, first, fitted[first.name], z_base, chi2_without, level
-        )
-        say(f"  {outcome_phrase(settled)}")
+        settled = settle(trial, first, fitted, z_base, chi2_without, level, say)
         outcomes = [settled if o is first else o for o in outcomes]
-    ordered = sorted(outcomes, key=lambda o: (bool(o.failure), o.chi2_with))
-    return ordered, frozenset(o.name for o in contenders)
+    return by_misfit(outcomes), frozenset(o.name for o in contenders)
 
 
 def try_effects(trial: Trial, names, z_base, chi2_without, level, say):
@@ -339,7 +350,7 @@ def try_effects(trial: Trial, names, z_base, chi2_without, level, say):
         say(f"effect {n + 1}/{len(names)}: {name} — screening …")
         outcome, fitted[name] = try_effect(trial, name, z_base, chi2_without, level, say)
         outcomes.append(outcome)
-    return sorted(outcomes, key=lambda o: (bool(o.failure), o.chi2_with)), fitted
+    return by_misfit(outcomes), fitted
 
 
 def try_pairs(
@@ -365,18 +376,12 @@ def try_pairs(
     if not evidence.band_gap or not pairs or pairs[0][0].p_after >= evidence.significance:
         return outcomes, []
     first = pairs[0][0]
-    if first.name in settled_names:
-        settled = first
-    else:
-        say(f"fitting {first.name} on until settled before pairing it …")
-        settled, fitted[first.name] = settled_single(
-            trial, first, fitted[first.name], z_base, chi2_without, level
-        )
-        say(f"  {outcome_phrase(settled)}")
-    outcomes = sorted(
-        (settled if o is first else o for o in outcomes),
-        key=lambda o: (bool(o.failure), o.chi2_with),
+    settled = (
+        first
+        if first.name in settled_names
+        else settle(trial, first, fitted, z_base, chi2_without, level, say)
     )
+    outcomes = by_misfit(settled if o is first else o for o in outcomes)
     if settled.p_after >= evidence.significance:
         return outcomes, []
     out = []

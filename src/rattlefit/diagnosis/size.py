@@ -58,16 +58,16 @@ def size_points(trial: Trial, i: int, z_fit, floor: float = 0.0) -> tuple[np.nda
 
 
 def size_interval(
-    trial: Trial, name: str, i: int, z_fit, chi2_fit: float
+    trial: Trial, name: str, i: int, z_fit, chi2_fit: float, floor: float = 0.0
 ) -> tuple[float, float, float]:
     """The estimate and 95 % interval (SI) of the field at coordinate ``i`` of effect
     ``name`` (or of ``"<effect>+<effect>"``), from the fitted point ``z_fit`` whose χ² on the
     fresh realisations is ``chi2_fit``: ``(estimate, lower, upper)``, the estimate the
-    profile's least χ² (the fitted value or a profiled one). An end at a range's end or at
-    the last value profiled is a bound."""
+    profile's least χ² (the fitted value or a profiled one), profiled down to the absent end
+    and through ``floor`` (:func:`size_points`). An end at a range's end or at the last
+    value profiled is a bound."""
     spec = trial.problem.specs[i]
-    effect = next(n for n in name.split("+") if i in trial.candidates[n])
-    points, logs = size_points(trial, i, z_fit, relevance_floor(effect))
+    points, logs = size_points(trial, i, z_fit, floor)
     held = [sorted([*trial.held(name), i])] * len(points)
     polished = polish_profile(
         functools.partial(residual_rows, trial),
@@ -98,7 +98,8 @@ def size_intervals(trial: Trial, name: str, z_fit, chi2_fit: float) -> dict[str,
     out = {}
     for effect in name.split("+"):
         i = trial.candidates[effect][0]
-        out[field_key(trial, name, i)] = size_interval(trial, name, i, z_fit, chi2_fit)
+        floor = relevance_floor(effect)
+        out[field_key(trial, name, i)] = size_interval(trial, name, i, z_fit, chi2_fit, floor)
     return out
 
 
