@@ -16,7 +16,7 @@ from scipy import stats
 import rattlefit as rf
 from rattlefit import synthesize
 from rattlefit.diagnosis.evidence import findings
-from rattlefit.features.drift import drift_evidence, window_length
+from rattlefit.features.drift import ar1_factor, drift_evidence, trend_t, window_length
 from rattlefit.features.orders import (
     contact_events,
     drive_order_evidence,
@@ -115,6 +115,45 @@ def test_drift_is_found_when_the_oil_warms(boundary_pair2):
     assert drift_evidence(rec).p_value < FAMILY / 6
     _, clean = boundary_pair2
     assert drift_evidence(clean).p_value > FAMILY / 6
+
+
+def test_a_drift_trend_without_the_drive_is_the_least_squares_slope():
+    # closed form: with a constant drive the trend is scipy's straight-line fit, its standard
+    # error widened by the residuals' autocorrelation
+    rng = np.random.default_rng(3)
+    values = rng.standard_normal((9, 2)) + 0.1 * np.arange(9)[:, None]
+    slope, slope_sd, _, dof = trend_t(values, np.full(9, 52.36))
+    for j in range(2):
+        fit = stats.linregress(np.arange(9), values[:, j])
+        residuals = values[:, j] - fit.intercept - fit.slope * np.arange(9)
+        assert slope[j] == pytest.approx(fit.slope, rel=1e-10)
+        assert slope_sd[j] == pytest.approx(fit.stderr * math.sqrt(ar1_factor(residuals)))
+    assert dof == 7
+
+
+def test_a_beat_the_drive_shows_too_is_no_drift_and_a_trend_it_does_not_show_is():
+    # Windows 0.045 drive cycles longer than whole ones: over 11 windows the drive's window
+    # means go through half a beat, like a trend, and a drive-locked statistic follows them.
+    # On time alone that beat is a trend; beyond the drive it is not, and a real trend beside
+    # it stays one.
+    windows = 11
+    drive = 52.36 + 0.2 * np.cos(2 * np.pi * 0.045 * np.arange(windows))
+    level = 0.01 / 2
+    flagged = {"time only": 0, "beyond the drive": 0, "trend": 0}
+    seeds = range(40)
+    for seed in seeds:
+        noise = 0.002 * np.random.default_rng(seed).standard_normal((windows, 2))
+        locked = 0.5 * (drive - drive.mean())
+        values = np.column_stack([locked, locked + 0.02 * np.arange(windows)]) + noise
+        _, _, t_time, dof_time = trend_t(values, np.full(windows, drive.mean()))
+        _, _, t, dof = trend_t(values, drive)
+        assert dof == dof_time - 1
+        flagged["time only"] += 2 * stats.t.sf(abs(t_time[0]), dof_time) < level
+        flagged["beyond the drive"] += 2 * stats.t.sf(abs(t[0]), dof) < level
+        flagged["trend"] += 2 * stats.t.sf(abs(t[1]), dof) < level
+    assert flagged["time only"] >= 0.9 * len(seeds)
+    assert flagged["beyond the drive"] <= 0.1 * len(seeds)
+    assert flagged["trend"] >= 0.9 * len(seeds)
 
 
 def _shared_truth():
