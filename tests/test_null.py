@@ -148,25 +148,48 @@ def test_a_notch_on_a_driven_tooth_stands_outside_the_null(locked_point):
     assert 10e-6 < tooth.test.amplitude < 40e-6  # the notch's depth, as the fit sees it
 
 
-def test_the_bundled_boundary_recordings_tooth_finding_is_covered_by_the_null():
-    # rattlefit's own clean recording: the decoy-calibrated tooth test of the driven wheel
-    # finds 7 µm on one tooth (p ≈ 5e-5), a size the model without effects at its truth makes
-    # about as often as not; against that null it is not named
-    from rattlefit.io.recording import read_truth
+def test_a_clean_second_rig_recording_whose_locked_rattle_fires_the_runout_test_is_not_named():
+    # The second rig (studies/second_rig, another simulator: torsional chain, servo, load
+    # sharing, cavitating film, encoder on the far end), clean, pair II with boundary
+    # lubrication, its drive fluctuating 18 % once per revolution of the primary (8.33 Hz at
+    # 500 rpm): the impacts repeat with the drive and so with the primary's angle, and the
+    # decoy-calibrated run-out test of the primary fires. The null of the model without
+    # effects, at the rig's stated values in rattlefit's terms, makes such patterns as large
+    # or larger, so no encoder finding is named. Half the diagnosis's null realisations keep
+    # the test within the suite's time.
+    import sys
+    from pathlib import Path
 
-    path = "data/pairII_boundary_65.6_20pct_16Hz.h5"
-    rec, truth = rf.read_recording(path), read_truth(path)
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "studies" / "second_rig"))
+    import validation_set
+
+    from rattlefit.physics.geometry import GearGeometry
+
+    case = next(c for c in validation_set.plan(20261210) if c.number == 33)
+    drawn = validation_set.draw(case)
+    at = round(validation_set.MEAN_SPEED / (2 * math.pi), 3)
+    locked = dataclasses.replace(
+        drawn,
+        frequency=at,
+        rig=dataclasses.replace(drawn.rig, drive_frequency=at),
+        clean_rig=dataclasses.replace(drawn.clean_rig, drive_frequency=at),
+    )
+    (rec,), _ = validation_set.simulate_cases([locked])
+    truth = validation_set.truth_of(locked)
     params = rf.RattleParams(
-        truth["film_half_length"], truth["drag_torque"], truth["viscosity"], truth["backlash"]
+        truth["a_mm"] * 1e-3,
+        truth["drag_torque_Nm"],
+        truth["viscosity_Pa_s"],
+        GearGeometry.from_spec(rec.gear_pair).backlash,
     )
     fitted = types.SimpleNamespace(
         state=types.SimpleNamespace(options=rf.FitOptions()),
         estimates=types.SimpleNamespace(rattle_params=lambda k: params),
     )
     found = findings([rec], 0.01)
-    (tooth,) = [f for f in found if f.test.name == "tooth.secondary"]
-    assert tooth.significant  # what the decoys alone conclude
-    again = with_simulated_null(found, [rec], fitted, seed=np.random.SeedSequence(0))
-    (tooth,) = [f for f in again if f.test.name == "tooth.secondary"]
-    assert not tooth.significant and tooth.test.detail["null_p"] > 0.2, tooth.test.detail
-    assert not any(f.significant for f in again)
+    fired = [f for f in found if f.significant and f.effect == "runout"]
+    assert fired, [f.as_dict() for f in found if f.significant]  # what the decoys conclude
+    again = with_simulated_null(found, [rec], fitted, n=25, seed=np.random.SeedSequence(0))
+    encoder = [f for f in again if f.effect in ("runout", "tooth_defect", "tooth_errors")]
+    assert not any(f.significant for f in encoder), [f.as_dict() for f in encoder]
+    assert decide([], Evidence(tuple(again))).label in ("none", "unexplained")
