@@ -414,11 +414,12 @@ def sized(trial: Trial, named: EffectOutcome, fitted: dict) -> EffectOutcome:
 
 def to_size(outcomes: list[EffectOutcome], evidence: Evidence) -> list[EffectOutcome]:
     """The band candidates the verdict rests on whose size is not yet profiled: the one it
-    names, or every one it cannot tell apart
-    (:attr:`~rattlefit.diagnosis.verdict.Verdict.indistinguishable`)."""
+    names, or every supported one it cannot tell apart
+    (:attr:`~rattlefit.diagnosis.verdict.Verdict.indistinguishable`; an unsupported one is a
+    rival whatever its size)."""
     verdict = decide(outcomes, evidence)
     rest = verdict.indistinguishable or ([verdict.explaining] if verdict.explaining else [])
-    return [o for o in rest if not o.intervals]
+    return [o for o in rest if not o.intervals and o.supported]
 
 
 def with_interval(

@@ -11,8 +11,9 @@ one to the band spectrum worsens the misfit beyond the Monte Carlo noise (:func:
 a band candidate
 is named when it is *nameable* (:func:`nameable`), closes the band gap (it leaves a misfit
 consistent with noise or removes at least :data:`CLOSES_MOST` of the excess) and no candidate
-of another mechanism also leaves a misfit consistent with noise (:func:`rivals`): a gap that
-several physics close alike is a model-form difference as likely as any of them.
+of another mechanism also leaves a misfit consistent with noise, or one as small within the
+Monte Carlo noise of a χ² difference (:func:`rivals`): a gap that several physics close alike
+is a model-form difference as likely as any of them.
 """
 
 from __future__ import annotations
@@ -155,10 +156,29 @@ def closing(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> EffectOutc
     return min(closes, key=lambda o: o.chi2_with) if closes else None
 
 
+def alike(o: EffectOutcome, best: EffectOutcome) -> bool:
+    """``o`` holds none of ``best``'s effects and leaves a misfit larger than ``best``'s by
+    no more than the Monte Carlo noise of a χ² difference (``best.noise_threshold``): it
+    closes the band gap as well, supported or not."""
+    return (
+        not o.failure
+        and not set(o.effects) & set(best.effects)
+        and o.chi2_with - best.chi2_with <= best.noise_threshold
+    )
+
+
+def as_good(
+    o: EffectOutcome, best: EffectOutcome, outcomes: Sequence[EffectOutcome], evidence: Evidence
+) -> bool:
+    """``o`` (not ``best``) closes the band gap as well as ``best``: it leaves a misfit
+    consistent with noise (:func:`within_noise`) or :func:`alike` ``best``'s."""
+    return o is not best and (within_noise(o, outcomes, evidence) or alike(o, best))
+
+
 def rivals(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> list[EffectOutcome]:
-    """Nameable candidates of another mechanism than :func:`closing`'s
-    (:func:`~rattlefit.physics.effects.mechanism_of`) that also leave a misfit consistent
-    with noise: the band spectrum cannot tell them from it."""
+    """Candidates of another mechanism than :func:`closing`'s
+    (:func:`~rattlefit.physics.effects.mechanism_of`) that close the band gap as well
+    (:func:`as_good`): the band spectrum cannot tell them from it."""
     best = closing(outcomes, evidence)
     if best is None:
         return []
@@ -166,9 +186,7 @@ def rivals(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> list[Effect
     return [
         o
         for o in outcomes
-        if o is not best
-        and within_noise(o, outcomes, evidence)
-        and not {mechanism_of(n) for n in o.effects} <= held
+        if as_good(o, best, outcomes, evidence) and not {mechanism_of(n) for n in o.effects} <= held
     ]
 
 
@@ -176,13 +194,13 @@ def indistinguishable(
     outcomes: Sequence[EffectOutcome], evidence: Evidence
 ) -> tuple[EffectOutcome, ...]:
     """When there are :func:`rivals`: the candidate that closes the band gap and every other
-    one that leaves a misfit consistent with noise, the least misfit first (empty
+    one that closes it as well (:func:`as_good`), the least misfit first (empty
     otherwise)."""
     if not rivals(outcomes, evidence):
         return ()
     best = closing(outcomes, evidence)
-    alike = [o for o in outcomes if o is not best and within_noise(o, outcomes, evidence)]
-    return (best, *sorted(alike, key=lambda o: o.chi2_with))
+    others = [o for o in outcomes if as_good(o, best, outcomes, evidence)]
+    return (best, *sorted(others, key=lambda o: o.chi2_with))
 
 
 def decide(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> Verdict:

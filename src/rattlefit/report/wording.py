@@ -95,8 +95,9 @@ def unexplained_gap(diag: Diagnosis) -> str:
         left = ", ".join(f"{o.chi2_with:.1f}" for o in alike)
         return (
             f"A significant gap that candidates of different mechanisms close alike: "
-            f"{fit_words(diag)}; {names} each leave a misfit within the noise (χ² {left}), so "
-            f"the band spectrum cannot tell them apart, nor from a model-form difference{cycle}"
+            f"{fit_words(diag)}; {names} each leave a misfit within the noise, or as small as "
+            f"the least within the Monte Carlo noise (χ² {left}), so the band spectrum cannot "
+            f"tell them apart, nor from a model-form difference{cycle}"
         )
     judged = [o for o in diag.outcomes if not o.failure]
     best = min(judged, key=lambda o: o.chi2_with, default=None)
