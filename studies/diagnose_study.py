@@ -353,9 +353,9 @@ def main() -> None:
     for c in result["confusion"]:
         say(f"  {c['truth']:28s} → {c['verdict']:28s} {c['count']}")
     if args.json:
-        frozen = {}
+        frozen = {"method_commit": args.method_commit} if args.method_commit else {}
         if "validation" in args.sets.split(","):
-            frozen = {
+            frozen |= {
                 "validation_set": os.path.relpath(args.validation_dir, REPO),
                 "validation_manifest_sha256": manifest_hash(args.validation_dir),
                 "method_commit": args.method_commit,
