@@ -264,7 +264,6 @@ def test_motor_cogging_at_order_24_from_the_second_rig_is_found_and_named():
     # no drive harmonic): the drive-order test finds order 24 at about the acceleration the
     # rig states, the verdict names a drive ripple and its candidate is fitted at order 24
     # (clean recordings' silence is the shared recordings' and the smooth drive's tests).
-    import dataclasses
     import sys
 
     from rattlefit.diagnosis.evidence import candidate_static
@@ -275,12 +274,7 @@ def test_motor_cogging_at_order_24_from_the_second_rig_is_found_and_named():
 
     drawn = validation_set.draw(next(c for c in validation_set.plan() if c.kinds == ("ripple",)))
     at = 14.0
-    cogging = dataclasses.replace(
-        drawn,
-        frequency=at,
-        rig=dataclasses.replace(drawn.rig, drive_frequency=at),
-        clean_rig=dataclasses.replace(drawn.clean_rig, drive_frequency=at),
-    )
+    cogging = validation_set.at_drive_frequency(drawn, at)
     (with_it,), _ = validation_set.simulate_cases([cogging], duration=1.5, burn_in=0.5)
     found = findings([with_it], FAMILY)
     (ripple,) = [f for f in found if f.significant]

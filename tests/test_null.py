@@ -168,12 +168,7 @@ def test_a_clean_second_rig_recording_whose_locked_rattle_fires_the_runout_test_
     case = next(c for c in validation_set.plan(20261210) if c.number == 33)
     drawn = validation_set.draw(case)
     at = round(validation_set.MEAN_SPEED / (2 * math.pi), 3)
-    locked = dataclasses.replace(
-        drawn,
-        frequency=at,
-        rig=dataclasses.replace(drawn.rig, drive_frequency=at),
-        clean_rig=dataclasses.replace(drawn.clean_rig, drive_frequency=at),
-    )
+    locked = validation_set.at_drive_frequency(drawn, at)
     (rec,), _ = validation_set.simulate_cases([locked])
     truth = validation_set.truth_of(locked)
     params = rf.RattleParams(

@@ -451,6 +451,16 @@ def counts(theta) -> np.ndarray:
     return np.floor(np.asarray(theta) * (COUNTS / (2 * math.pi))).astype(np.int64)
 
 
+def at_drive_frequency(d: Drawn, frequency: float) -> Drawn:
+    """``d`` with its drive (and its clean twin's) fluctuating at ``frequency`` Hz."""
+    return dataclasses.replace(
+        d,
+        frequency=frequency,
+        rig=dataclasses.replace(d.rig, drive_frequency=frequency),
+        clean_rig=dataclasses.replace(d.clean_rig, drive_frequency=frequency),
+    )
+
+
 def recording_of(d: Drawn, theta_primary, theta_secondary) -> Recording:
     """The recording the two encoders latch: the pinion and the secondary shaft's far end."""
     op = OperatingPoint(

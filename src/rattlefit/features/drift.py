@@ -45,6 +45,12 @@ def window_length(recording: Recording) -> int:
     return round(revolutions / f_driven * recording.sample_rate_hz)
 
 
+def window_starts(recording: Recording) -> np.ndarray:
+    """First sample of each whole window of :func:`window_length` samples."""
+    n = window_length(recording)
+    return np.arange(0, recording.n_samples - n + 1, n)
+
+
 def window_statistics(recording: Recording) -> tuple[np.ndarray, tuple[str, ...]]:
     """(W, S) statistics of each window and their names: log10 RMS of dΔθ*/dt, log10 power
     in each of :data:`DRIFT_BANDS_HZ`, and the share of samples in the outer fifth of the
@@ -55,7 +61,7 @@ def window_statistics(recording: Recording) -> tuple[np.ndarray, tuple[str, ...]
     lo, hi = np.percentile(d, [0.1, 99.9])
     margin = 0.2 * (hi - lo)
     rows = []
-    for start in range(0, d.size - n + 1, n):
+    for start in window_starts(recording):
         x = d[start : start + n]
         f, p = signal.periodogram(x - x.mean(), fs=fs, window="hann")
         bands = [np.log10(np.sum(p[(f >= a) & (f < b)]) + 1e-300) for a, b in DRIFT_BANDS_HZ]
@@ -86,7 +92,7 @@ def window_drive_speed(recording: Recording) -> np.ndarray:
     rad/s: its angle's change from the window's first sample to its last over that time."""
     theta = recording.theta_primary
     n = window_length(recording)
-    starts = np.arange(0, theta.size - n + 1, n)
+    starts = window_starts(recording)
     return (theta[starts + n - 1] - theta[starts]) * recording.sample_rate_hz / (n - 1)
 
 
@@ -126,7 +132,7 @@ def drift_evidence(recording: Recording) -> AngleTest:
     w = values.shape[0]
     if w < 4:
         return AngleTest("drift", 0.0, 1, 1.0, 0.0, 0.0, {"windows": w})
-    slope, slope_sd, t, dof = trend_t(values, window_drive_speed(recording)[:w])
+    slope, slope_sd, t, dof = trend_t(values, window_drive_speed(recording))
     worst = int(np.argmax(np.abs(t)))
     p_one = 2 * stats.t.sf(abs(t[worst]), dof)
     return AngleTest(
