@@ -45,10 +45,10 @@ SHARED = recordings_dir(ROOT)
 NEEDS = "needs "
 CI_ENV = "CI"
 
-#: Tests marked ``@pytest.mark.slow`` are identifications too long for the CI time budget:
-#: skipped unless ``--run-slow`` is given or this variable is set (to anything but 0).
+#: Tests marked ``@pytest.mark.slow`` are the statistical suite, identifications too long for
+#: the CI time budget: not collected (deselected, not skipped) unless ``--run-slow`` is given or
+#: this variable is set (to anything but 0).
 SLOW_ENV = "RATTLEFIT_SLOW"
-SLOW_REASON = f"slow: run with --run-slow (or {SLOW_ENV}=1)"
 
 
 def pytest_addoption(parser):
@@ -78,10 +78,10 @@ def pytest_runtest_makereport(item, call):
 def pytest_collection_modifyitems(config, items):
     if config.getoption("--run-slow") or os.environ.get(SLOW_ENV, "") not in ("", "0"):
         return
-    skip = pytest.mark.skip(reason=SLOW_REASON)
-    for item in items:
-        if item.get_closest_marker("slow") is not None:
-            item.add_marker(skip)
+    slow = [item for item in items if item.get_closest_marker("slow") is not None]
+    if slow:
+        config.hook.pytest_deselected(items=slow)
+        items[:] = [item for item in items if item.get_closest_marker("slow") is None]
 
 
 @pytest.fixture(scope="session")

@@ -2,28 +2,32 @@
 
 Two parts:
 
-- **Within rounding, everywhere** (``compute_stable()``, pinned in ``tests/pins/stable.json``):
-  the stages that are not chaotic — each bundled recording's feature vector, 50 ms of
-  simulated motion (one solve and a lockstep batch) and the squeeze momentum's closed form —
-  compared with tolerances that float64 rounding on another CPU or JAX version stays within
-  (:data:`TOLERANCES`).
-- **To the last bit, per platform**: ``compute()`` runs three fixed pipelines on the bundled
-  ``data/`` files and returns their JSON documents with wall times removed:
+- **Within rounding, everywhere** (``compute_stable()``, pinned in ``tests/pins/stable.json``
+  and checked by ``tests/test_golden.py`` on every platform): the stages that are not chaotic —
+  each bundled recording's feature vector, 50 ms of simulated motion (one solve and a lockstep
+  batch) and the squeeze momentum's closed form — compared with tolerances that float64
+  rounding on another CPU or JAX version stays within (:data:`TOLERANCES`).
+- **To the last bit, on one machine** (``compute()``): three fixed seeded pipelines on the
+  bundled ``data/`` files, their JSON documents with wall times removed:
 
-- ``identify`` with ``FitOptions.quick(seed=0)`` on the bundled pair II boundary file;
-- a diagnosis from a quick fit (``FitOptions.quick(seed=0)``) trying two effects;
-- a 20-step emcee chain started from the first identification.
+  - ``identify`` with ``FitOptions.quick(seed=0)`` on the bundled pair II boundary file;
+  - a diagnosis from a quick fit (``FitOptions.quick(seed=0)``) trying two effects;
+  - a 20-step emcee chain started from the first identification.
 
-  A seeded result depends on the platform (JAX version, backend, device count, CPU and its
-  instruction-set cap): rattle is chaotic, so a last-bit difference grows into another
-  realisation. These pins are recorded per platform, in ``tests/pins/<key>.json``.
+  A seeded result depends on the platform (JAX version, backend, device count, CPU model and
+  its instruction-set cap): rattle is chaotic, so a last-bit difference grows into another
+  realisation. So this part is no test and no file in the repository: a developer who
+  restructures code records it before the change and compares after it, on the same machine::
 
-Record with ``python tests/golden_pin.py --record`` (this platform's exact pin) or
-``--record-stable`` (the pin within rounding).
+      git stash; python tests/golden_pin.py --record /tmp/before.json; git stash pop
+      python tests/golden_pin.py --compare /tmp/before.json     # exit 1 and a diff if moved
+
+Re-record the pin within rounding with ``python tests/golden_pin.py --record-stable``.
 """
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import json
 import sys
@@ -161,24 +165,66 @@ def record_stable() -> Path:
     return STABLE
 
 
-def pin_path() -> Path:
-    return PINS / f"{platform_key()[0]}.json"
-
-
-def record() -> Path:
+def record(path: Path) -> Path:
+    """Write this platform's exact outputs (:func:`compute`) and the platform to ``path``."""
     key, info = platform_key()
-    doc = {"platform": info, "outputs": compute()}
-    path = PINS / f"{key}.json"
-    PINS.mkdir(exist_ok=True)
-    tmp = path.with_suffix(".tmp")
+    doc = {"platform": info, "platform_key": key, "outputs": compute()}
+    tmp = path.with_name(f".{path.name}.tmp")
     tmp.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
     tmp.replace(path)
     return path
 
 
-if __name__ == "__main__":
-    if sys.argv[1:] not in (["--record"], ["--record-stable"]):
-        sys.exit("usage: python tests/golden_pin.py --record | --record-stable")
+def differences(pinned: dict, now: dict) -> list[str]:
+    """One unified diff per pipeline whose JSON text differs (floats by their repr, so to the
+    last bit, NaN equal to NaN), or a line naming pipelines present on one side only."""
+    moved = []
+    if sorted(now) != sorted(pinned):
+        moved.append(f"pipelines differ: pinned {sorted(pinned)}, now {sorted(now)}")
+    for name in sorted(set(pinned) & set(now)):
+        want = json.dumps(pinned[name], indent=1, sort_keys=True).splitlines()
+        got = json.dumps(now[name], indent=1, sort_keys=True).splitlines()
+        diff = list(difflib.unified_diff(want, got, "pinned", "now", n=2, lineterm=""))
+        if diff:
+            moved.append(f"{name} moved:\n" + "\n".join(diff[:60]))
+    return moved
+
+
+def compare(path: Path) -> int:
+    """0 when this platform's outputs equal those recorded at ``path`` to the last bit, 1 with
+    the differences on stderr otherwise, 2 when ``path`` was recorded on another platform."""
+    pinned = json.loads(path.read_text())
+    key, info = platform_key()
+    if pinned.get("platform_key") != key:
+        recorded = pinned.get("platform")
+        print(f"{path}: recorded on another platform ({recorded}); this one is {info}: a "
+              "seeded result is comparable only on the same one", file=sys.stderr)  # fmt: skip
+        return 2
+    moved = differences(pinned["outputs"], compute())
+    for text in moved:
+        print(text, file=sys.stderr)
+    print(f"{'moved' if moved else 'unchanged to the last bit'} against {path}")
+    return 1 if moved else 0
+
+
+def main(argv: list[str]) -> int:
+    usage = "usage: python tests/golden_pin.py --record FILE | --compare FILE | --record-stable"
+    if argv[:1] not in (["--record"], ["--compare"], ["--record-stable"]):
+        print(usage, file=sys.stderr)
+        return 2
+    if (argv[0] == "--record-stable") != (len(argv) == 1) or len(argv) > 2:
+        print(usage, file=sys.stderr)
+        return 2
     rattlefit.configure(cpu_cores=1)  # one device, as under pytest-xdist
     jax.devices()
-    print(record() if sys.argv[1] == "--record" else record_stable())
+    if argv[0] == "--record-stable":
+        print(record_stable())
+        return 0
+    if argv[0] == "--record":
+        print(record(Path(argv[1])))
+        return 0
+    return compare(Path(argv[1]))
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
