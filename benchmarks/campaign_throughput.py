@@ -218,7 +218,6 @@ def main() -> None:
         "plan, resumption's checks, the table, the report) timed on the results replicated "
         "to 12, 60 and 180 recordings. Extrapolation: start + read + ⌈180/(N·C)⌉ × the mean "
         f"task time with every core busy + the client's steps at 180, C = {cores}.",
-        "measures": ["src/rattlefit/campaign"],
         "devices": 1,
         "results": {
             "runs": {str(k): v for k, v in runs.items()},

@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 
 from rattlefit.reproducibility import platform_info
-from rattlefit.testing.results import head_commit, write_result
+from rattlefit.testing.results import tree_state, write_result
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_FILE = ROOT.parent / "shared" / "recordings" / "pairII_boundary_65.4_20pct_16Hz_runout.h5"
@@ -81,7 +81,7 @@ def result_document(path: Path, res: dict) -> dict:
         "command": f"python benchmarks/diagnose_time.py --file {path}",
         "results": {k: v for k, v in res.items() if k != "platform"},
         "platform": res["platform"],
-        "commit": head_commit(),
+        **tree_state(),
     }
 
 

@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 
 import rattlefit as rf
-from rattlefit.testing.results import head_commit
+from rattlefit.testing.results import tree_state
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = ROOT / "data" / "pairII_boundary_65.6_20pct_16Hz.h5"
@@ -119,7 +119,7 @@ def main() -> None:
         },
         "platform": rf.platform_info(),
         "date": time.strftime("%Y-%m-%d"),
-        "commit": head_commit(),
+        **tree_state(),
     }
     path = Path(args.json)
     tmp_path = path.with_name(f".{path.name}.tmp")

@@ -7,12 +7,15 @@ its first clause), the ``aim`` and ``verdict``, ``order`` (its row's place) and,
 the README shows, ``headline: true``. Files whose ``summary`` is not a string (raw study
 output) are not tabled.
 
-**Freshness.** A result is *current* when its ``commit`` (the commit it was measured at)
-descends from the last change to the paths it declares in ``measures`` (default ``["src"]``:
-anything in the package), uncommitted changes to them included; otherwise it is *stale*.
-docs/performance.md lists every result with its state; the README shows only the current
-headline results, so a figure it shows was measured on the code it describes. A stale result
-is fixed by re-running its command, never by editing it.
+**Freshness.** What a result measures is derived from its ``command`` (``measured.py``: the
+scripts it runs and every repository module they import, the repository files it names,
+``constraints.txt``), never declared. A result is *current* when its ``commit`` descends from
+the last change to those paths, none of them has uncommitted changes now, none changed between
+the commit its run started at (``commit_started``) and ``commit``, and none was among the
+``uncommitted`` paths when it was written; otherwise it is *stale* (a file that does not record
+``uncommitted`` is stale too). docs/performance.md lists every result with its state; the
+README shows only the current headline results, so a figure it shows was measured on the code
+it describes. A stale result is fixed by re-running its command, never by editing it.
 
 Each table sits between the page's markers
 
@@ -38,15 +41,15 @@ import sys
 import tempfile
 from pathlib import Path
 
+from measured import ENVIRONMENT, measured_paths
+
 ROOT = Path(__file__).resolve().parents[1]
 RESULT_DIRS = (ROOT / "benchmarks" / "results", ROOT / "studies" / "results")
 README = ROOT / "README.md"
 PERFORMANCE = ROOT / "docs" / "performance.md"
 BEGIN = "<!-- results:begin -->"
 END = "<!-- results:end -->"
-REQUIRED = ("what", "summary", "aim", "verdict", "commit", "platform")
-#: What a result measures when it does not say: the whole package.
-DEFAULT_MEASURES = ("src",)
+REQUIRED = ("what", "summary", "aim", "verdict", "commit", "platform", "command")
 
 
 def _cell(text: object) -> str:
@@ -75,30 +78,57 @@ def git(*args: str, root: Path = ROOT) -> subprocess.CompletedProcess:
     return subprocess.run(["git", *args], cwd=root, capture_output=True, text=True, check=False)
 
 
-def last_change(paths, root: Path = ROOT) -> str:
-    """The last commit that changed ``paths``, or "worktree" when they have uncommitted
-    changes. Raises ValueError when git cannot tell."""
-    if git("status", "--porcelain", "--", *paths, root=root).stdout.strip():
-        return "worktree"
-    out = git("log", "-1", "--format=%h", "--", *paths, root=root)
-    if out.returncode != 0 or not out.stdout.strip():
-        raise ValueError(f"git cannot tell when {', '.join(paths)} last changed: {out.stderr}")
-    return out.stdout.strip()
+def uncommitted(paths, root: Path = ROOT) -> bool:
+    """Whether any of ``paths`` has uncommitted changes (untracked files included)."""
+    return bool(git("status", "--porcelain", "--", *paths, root=root).stdout.strip())
 
 
 def state(doc: dict, name: str, root: Path = ROOT) -> str:
-    """ "current", or "stale: ..." naming the paths that changed after the result's commit
-    (which commit changed them is left out, so that the state changes only when a result
-    goes stale or is re-measured)."""
-    paths = tuple(doc.get("measures", DEFAULT_MEASURES))
-    changed = last_change(paths, root)
+    """ "current", or "stale: ..." saying why (:func:`staleness`; which paths or commits is
+    left out, so that the state changes only when a result goes stale or is re-measured)."""
+    return staleness(doc, name, root)[0]
+
+
+def staleness(doc: dict, name: str, root: Path = ROOT) -> tuple[str, list[str]]:
+    """The state of result ``doc`` (file ``name``) and the paths behind a stale one. Raises
+    ValueError when its commit is not in the history."""
     commit = str(doc["commit"])
-    if git("cat-file", "-e", f"{commit}^{{commit}}", root=root).returncode != 0:
-        raise ValueError(f"{name}: its commit {commit} is not in this repository's history")
-    if changed != "worktree":
-        if git("merge-base", "--is-ancestor", changed, commit, root=root).returncode == 0:
-            return "current"
-    return f"stale: {', '.join(paths)} changed after {commit}"
+    for c in {commit, str(doc.get("commit_started") or commit)}:
+        if git("cat-file", "-e", f"{c}^{{commit}}", root=root).returncode != 0:
+            raise ValueError(f"{name}: its commit {c} is not in this repository's history")
+    derived = measured_paths(str(doc["command"]), root)
+    if derived.missing:
+        return "stale: its command runs a script this tree does not have", list(derived.missing)
+    paths = [p for p in derived.paths if p not in ENVIRONMENT]
+    if not paths:
+        return "stale: its command runs nothing in this repository", []
+    if not isinstance(doc.get("uncommitted"), list):
+        return "stale: its file does not record whether the tree was clean", []
+    dirty = [u for u in doc["uncommitted"] if any(u == p or u.startswith(p.rstrip("/") + "/")
+                                                  for p in derived.paths)]  # fmt: skip
+    if dirty:
+        return "stale: written with uncommitted changes to what it runs", dirty
+    started = str(doc.get("commit_started") or commit)
+    moved = changed_between(started, commit, derived.paths, root)
+    if moved:
+        return "stale: what it runs changed while it ran", moved
+    if uncommitted(derived.paths, root):
+        return "stale: what it runs has uncommitted changes", []
+    later = changed_between(commit, "HEAD", derived.paths, root)
+    if later:
+        return f"stale: what it runs changed after {commit}", later
+    return "current", []
+
+
+def changed_between(old: str, new: str, paths, root: Path = ROOT) -> list[str]:
+    """The ``paths`` (files, or files under folders) that differ between commits ``old`` and
+    ``new``."""
+    if old == new:
+        return []
+    out = git("diff", "--name-only", old, new, "--", *paths, root=root)
+    if out.returncode != 0:
+        raise ValueError(f"git cannot compare {old} with {new}: {out.stderr.strip()}")
+    return out.stdout.split()
 
 
 def headline(summary: str) -> str:

@@ -26,7 +26,7 @@ import sys
 import time
 from pathlib import Path
 
-from readme_table import RESULT_DIRS, ROOT, git, load_results, state
+from readme_table import RESULT_DIRS, ROOT, git, load_results, staleness, state
 
 #: Result file (its name) → (the command that writes it, typical minutes on 2 cores).
 #: ``{commit}`` stands for HEAD's short hash: a study that resumes from rows or learned
@@ -78,7 +78,7 @@ RECIPES: dict[str, tuple[str, float]] = {
     ),
     "diagnose_full_study.json": (
         "python studies/diagnose_study.py --full --sets shared,clean,injected --quiet "
-        "--cases-dir studies/cache/diagnose_cases/{commit} --method-commit {commit} "
+        "--cases-dir studies/cache/diagnose_cases/{commit} "
         "--result studies/results/diagnose_full_study.json",
         300,
     ),
@@ -110,17 +110,20 @@ BY_HAND: dict[str, str] = {
 
 
 def listing(rows) -> list[str]:
-    """One line per result: its state, and its recipe and typical time (or how it is measured
-    by hand)."""
+    """One line per result: its state with the paths behind it, and its recipe and typical
+    time (or how it is measured by hand)."""
     out = []
-    for name, _, st in rows:
+    for name, doc, st in rows:
         base = Path(name).name
         if base in RECIPES:
             command, minutes = RECIPES[base]
             how = f"~{minutes:g} min: {command}"
         else:
             how = f"by hand: {BY_HAND.get(base, '(no recipe)')}"
-        out.append(f"{name}: {st}\n    {how}")
+        paths = staleness(doc, name)[1] if st != "current" else []
+        more = f" (+{len(paths) - 4} more)" if len(paths) > 4 else ""
+        why = f" [{', '.join(paths[:4])}{more}]" if paths else ""
+        out.append(f"{name}: {st}{why}\n    {how}")
     return out
 
 

@@ -492,7 +492,6 @@ def report(res: dict) -> str:
 
 
 #: What the forward result measures: a change there makes it stale (benchmarks/readme_table.py).
-FORWARD_MEASURES = ["src/rattlefit/simulation", "src/rattlefit/physics", "src/rattlefit/features"]
 
 
 def forward_result(res: dict) -> dict:
@@ -540,7 +539,6 @@ def forward_result(res: dict) -> dict:
         f"{REF_TOL[0]:g}). The matched rtol is the loosest whose ensemble-mean log band PSDs "
         f"lie within rms z < {Z_MATCH:g} of the reference's; the ratio is the reference's wall "
         "time over rattlefit's at that rtol, the two alternated in one process.",
-        "measures": FORWARD_MEASURES,
         "devices": res.get("devices"),
         "results": {
             "paired_ratio_geometric_mean": round(geo, 1),

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from rattlefit.inference.options import OPTION_NAMES
 from rattlefit.inference.parameters import default_specs
-from rattlefit.testing.results import head_commit, provenance, write_result
+from rattlefit.testing.results import head_commit, provenance, tree_state, write_result
 
 __all__ = [
     "add_set_argument",
@@ -24,6 +24,7 @@ __all__ = [
     "log_width",
     "provenance",
     "set_overrides",
+    "tree_state",
     "write_result",
 ]
 

@@ -32,7 +32,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import head_commit, write_result
+from common import tree_state, write_result
 from sbc import POINTS, problem_at
 from scipy import stats
 
@@ -152,7 +152,7 @@ def main() -> None:
             "what": "learned density candidates on held-out simulations of rattlefit's simulator",
             "command": f"python studies/density_choice.py --point {args.point} --sizes "
             f"{args.sizes} --held-out {args.held_out} --cases {args.cases} --seed {args.seed}",
-            "commit": head_commit(),
+            **tree_state(),
             "date": time.strftime("%Y-%m-%d"),
             "platform": rf.platform_info(),
             "devices": devices,

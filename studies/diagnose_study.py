@@ -16,7 +16,7 @@ otherwise.
                                         [--validation-dir DIR]
                                         [--only NAME ...] [--cases-dir DIR [--rows-only]]
                                         [--json out.json] [--quiet]
-                                        [--result README_RESULT.json --method-commit C]
+                                        [--result README_RESULT.json]
 
 A full study takes hours: with ``--cases-dir`` each case's row is written there as it ends
 (``<name>.json``) and a case whose row is there is not run again, so an interrupted study
@@ -40,7 +40,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
-from common import provenance, write_result
+from common import provenance, tree_state, write_result
 from scipy import stats
 
 import rattlefit as rf
@@ -266,11 +266,12 @@ def study_verdict(result: dict, n_clean: int, n_effect: int) -> str:
     return f"{fp}; {right}"
 
 
-def result_document(rows: list[dict], cases: list[dict], method_commit: str) -> dict:
+def result_document(rows: list[dict], cases: list[dict]) -> dict:
     """The README result file (``studies/results/diagnose_full_study.json``) of a full
-    study's ``rows`` out of the ``cases`` selected, run on the diagnosis code of
-    ``method_commit``."""
+    study's ``rows`` out of the ``cases`` selected, run on the checkout's code (its commit is
+    the method's: to score an older method, run the study in a worktree of its commit)."""
     result = summary(rows)
+    tree = tree_state()
     n_cases = len(cases)
     n_clean = sum(is_clean(c) for c in cases)
     return {
@@ -291,15 +292,14 @@ def result_document(rows: list[dict], cases: list[dict], method_commit: str) -> 
         "verdict": study_verdict(result, n_clean, n_cases - n_clean),
         "measured": "python studies/diagnose_study.py --full --sets shared,clean,injected "
         "--cases-dir studies/results/diagnose_cases (one row a case, fit seed 0, "
-        f"family-wise level 0.01), on the diagnosis code of commit {method_commit}; a row's "
+        f"family-wise level 0.01), on the diagnosis code of commit {tree['commit']}; a row's "
         "wall_s includes any time the study was paused or ran at low priority; rows may come "
         "from several machines of one kind (platform: the one that summarised them)",
         "command": "python studies/diagnose_study.py --full --sets shared,clean,injected "
-        "--cases-dir studies/results/diagnose_cases --rows-only --result OUT "
-        f"--method-commit {method_commit}",
+        "--cases-dir studies/results/diagnose_cases --rows-only --result OUT",
         "results": {**result, "cases": [{k: r[k] for k in ROW_KEYS if k in r} for r in rows]},
         "platform": rf.reproducibility.platform_info(),
-        "commit": method_commit,
+        **tree,
     }
 
 
@@ -322,7 +322,6 @@ def main() -> None:
     ap.add_argument("--json")
     ap.add_argument("--quiet", action="store_true")
     ap.add_argument("--result", help="also write the README result file (with --full)")
-    ap.add_argument("--method-commit", default="", help="the diagnosis code's commit")
     ap.add_argument(
         "--rows-only",
         action="store_true",
@@ -353,12 +352,11 @@ def main() -> None:
     for c in result["confusion"]:
         say(f"  {c['truth']:28s} → {c['verdict']:28s} {c['count']}")
     if args.json:
-        frozen = {"method_commit": args.method_commit} if args.method_commit else {}
+        frozen = {}
         if "validation" in args.sets.split(","):
-            frozen |= {
+            frozen = {
                 "validation_set": os.path.relpath(args.validation_dir, REPO),
                 "validation_manifest_sha256": manifest_hash(args.validation_dir),
-                "method_commit": args.method_commit,
             }
         mode = "full" if args.full else "model-free"
         doc = {**provenance(), "mode": mode, **frozen, **result, "cases": rows}
@@ -366,7 +364,7 @@ def main() -> None:
     if args.result:
         if not args.full:
             ap.error("--result describes a full study: add --full")
-        write_result(args.result, result_document(rows, selected, args.method_commit))
+        write_result(args.result, result_document(rows, selected))
 
 
 if __name__ == "__main__":

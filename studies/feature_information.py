@@ -25,7 +25,7 @@ import math
 import time
 
 import numpy as np
-from common import head_commit, write_result
+from common import tree_state, write_result
 
 import rattlefit as rf
 from rattlefit.features.ensemble import shrunk_correlation
@@ -155,7 +155,7 @@ def result_document(rows: list[dict], n: int, delta: float) -> dict:
         "command": "python studies/feature_information.py --json OUT",
         "results": {"n": n, "delta": delta, "phase_bins": PHASE_BINS, "regimes": rows},
         "platform": platform_info(),
-        "commit": head_commit(),
+        **tree_state(),
     }
 
 

@@ -18,7 +18,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from common import head_commit, log_width, write_result
+from common import log_width, tree_state, write_result
 
 from rattlefit.reproducibility import platform_info
 
@@ -91,7 +91,7 @@ def result_document(seed: int, summaries: dict) -> dict:
         "command": f"python studies/feature_sets.py --seed {seed} --json OUT",
         "results": {"seed": seed, **summaries},
         "platform": platform_info(),
-        "commit": head_commit(),
+        **tree_state(),
     }
 
 

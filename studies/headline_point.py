@@ -25,7 +25,7 @@ import argparse
 import math
 from pathlib import Path
 
-from common import head_commit, identified, write_result
+from common import identified, tree_state, write_result
 
 from rattlefit.physics.geometry import table2_pair
 from rattlefit.physics.model import DEFAULT_MIN_FILM, squeeze_momentum
@@ -181,7 +181,7 @@ def result_document(rows: list[dict]) -> dict:
         "checks": c,
         "results": rows,
         "platform": platform_info(),
-        "commit": head_commit(),
+        **tree_state(),
     }
 
 

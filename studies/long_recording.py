@@ -21,7 +21,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from common import head_commit, identified, log_width, write_result
+from common import identified, log_width, tree_state, write_result
 
 from rattlefit.reproducibility import platform_info
 from rattlefit.testing.shared import recordings_dir
@@ -173,7 +173,7 @@ def result_document(rows: list[dict]) -> dict:
         "command": "python studies/long_recording.py --json OUT",
         "results": rows,
         "platform": platform_info(),
-        "commit": head_commit(),
+        **tree_state(),
     }
 
 

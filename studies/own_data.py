@@ -20,7 +20,7 @@ import json
 import time
 from pathlib import Path
 
-from common import head_commit, held, write_result
+from common import head_commit, held, tree_state, write_result
 
 import rattlefit as rf
 from rattlefit.io.recording import read_truth
@@ -125,7 +125,6 @@ def write(args, rows: list, devices: int) -> None:
     """Write the result file (atomically) from the fits so far."""
     n_held, total = held(rows)
     n_fitting = sum(r["p_value"] > 0.01 for r in rows)
-    commit = head_commit()
     doc = {
         "what": "the learned likelihood on rattlefit's own data: notebook 2's joint fits at "
         "several fit seeds",
@@ -134,7 +133,7 @@ def write(args, rows: list, devices: int) -> None:
         + " --fits "
         + " ".join(args.fits)
         + (" --keep" if args.keep else ""),
-        "commit": commit,
+        **tree_state(),
         "date": time.strftime("%Y-%m-%d"),
         "platform": rf.platform_info(),
         "devices": devices,

@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from common import head_commit, write_result
+from common import tree_state, write_result
 from scipy import stats
 
 import rattlefit as rf
@@ -52,15 +52,6 @@ POINTS = {
     "dry": ("I", "dry", 65.4, 10, 16.0, 20.0),
 }
 LEVELS = (0.5, 0.9, 0.95)
-#: What the calibration measures: a change there makes its result stale
-#: (benchmarks/readme_table.py).
-MEASURES = [
-    "src/rattlefit/likelihood",
-    "src/rattlefit/inference",
-    "src/rattlefit/simulation",
-    "src/rattlefit/physics",
-    "src/rattlefit/features",
-]
 #: Posterior draws per case, for the rank statistic (ranks 0…DRAWS).
 DRAWS = 99
 BINS = 10
@@ -316,17 +307,15 @@ def write(args, per_point: dict, all_rows: list, devices: int, wall: float, poin
     """Write the result file (atomically) and the figure from the cases so far."""
     names = [n for n in all_rows[0] if isinstance(all_rows[0][n], dict)]
     summary = summarise(all_rows, names)
-    commit = head_commit()
     doc = {
         "what": "simulation-based calibration of the learned likelihood (amortised over the "
         "priors at each operating point)",
         "command": "python studies/sbc.py "
         + " ".join(f"--{k} {v}" for k, v in vars(args).items() if k not in ("json", "figure")),
-        "commit": commit,
+        **tree_state(),
         "date": time.strftime("%Y-%m-%d"),
         "platform": rf.platform_info(),
         "devices": devices,
-        "measures": MEASURES,
         "seed": args.seed,
         "cases": len(all_rows),
         "wall_s": wall,

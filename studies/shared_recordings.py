@@ -16,7 +16,7 @@ import json
 import time
 from pathlib import Path
 
-from common import head_commit, held, write_result
+from common import held, tree_state, write_result
 
 import rattlefit as rf
 from rattlefit.testing.shared import recordings_dir
@@ -87,13 +87,12 @@ def main() -> None:
 def write(args, rows: list, devices: int) -> None:
     """Write the result file (atomically) from the recordings so far."""
     n_held, total = held(rows)
-    commit = head_commit()
     doc = {
         "what": "the learned likelihood on the independent simulator's recordings without effects",
         "command": "python studies/shared_recordings.py --seed "
         + str(args.seed)
         + (" " + " ".join(args.names) if args.names else ""),
-        "commit": commit,
+        **tree_state(),
         "date": time.strftime("%Y-%m-%d"),
         "platform": rf.platform_info(),
         "devices": devices,

@@ -1,0 +1,118 @@
+"""The staleness check of result files (benchmarks/readme_table.py, benchmarks/measured.py):
+what a result measures is derived from its command, and no edit, dirty tree or commit landing
+mid-run leaves a stale figure looking current. Each case runs in a temporary clone."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+FORWARD = "python benchmarks/run.py --write-results --json benchmarks/results/raw/full.json"
+
+
+def _modules():
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        import measured
+        import readme_table
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    return measured, readme_table
+
+
+def _git(root: Path, *args: str) -> str:
+    out = subprocess.run(["git", *args], cwd=root, capture_output=True, text=True, check=True)
+    return out.stdout.strip()
+
+
+@pytest.fixture
+def clone(tmp_path) -> Path:
+    """A clone of the repository at HEAD (uncommitted work left out), with an identity."""
+    subprocess.run(["git", "clone", "--quiet", str(ROOT), str(tmp_path / "r")], check=True)
+    root = tmp_path / "r"
+    _git(root, "config", "user.email", "test@example.invalid")
+    _git(root, "config", "user.name", "test")
+    return root
+
+
+def _result(root: Path, **changes) -> dict:
+    head = _git(root, "rev-parse", "--short", "HEAD")
+    doc = {"command": FORWARD, "commit": head, "commit_started": head, "uncommitted": []}
+    return {**doc, **changes}
+
+
+def _commit(root: Path, path: str, line: str) -> str:
+    with open(root / path, "a", encoding="utf-8") as f:
+        f.write(line)
+    _git(root, "commit", "--quiet", "-am", f"touch {path}")
+    return _git(root, "rev-parse", "--short", "HEAD")
+
+
+def test_what_forward_measures_is_derived_from_its_imports():
+    # the modules a hand-written list forgot: the configuration, the recording's reader and the
+    # suite's own step module; and a script that is gone is named as missing
+    measured, _ = _modules()
+    paths = set(measured.measured_paths(FORWARD).paths)
+    wanted = {
+        "benchmarks/run.py",
+        "benchmarks/suite_steps.py",
+        "src/rattlefit/config.py",
+        "src/rattlefit/io/recording.py",
+        "src/rattlefit/simulation/reference.py",
+        "constraints.txt",
+    }
+    assert wanted <= paths, wanted - paths
+    assert not {p for p in paths if p.startswith(("tests/", "studies/", "notebooks/"))}
+    gone = measured.measured_paths("python benchmarks/coverage.py --seed 0")
+    assert gone.missing == ("benchmarks/coverage.py",)
+
+
+def test_an_import_inside_a_function_is_followed(tmp_path):
+    measured, _ = _modules()
+    (tmp_path / "src" / "pkg").mkdir(parents=True)
+    (tmp_path / "src" / "pkg" / "__init__.py").write_text("")
+    (tmp_path / "src" / "pkg" / "late.py").write_text("X = 1\n")
+    (tmp_path / "src" / "pkg" / "never.py").write_text("X = 2\n")
+    (tmp_path / "helper.py").write_text("def f():\n    from pkg import late\n    return late\n")
+    (tmp_path / "run.py").write_text("import helper\n")
+    found = measured.closure([tmp_path / "run.py"], tmp_path)
+    assert found == ["helper.py", "run.py", "src/pkg/__init__.py", "src/pkg/late.py"]
+
+
+def test_a_result_goes_stale_when_what_it_imports_changes(clone):
+    _, rt = _modules()
+    assert rt.state(_result(clone), "forward.json", clone) == "current"
+    # a change to what no hand-written list named, uncommitted, then committed
+    (clone / "src/rattlefit/config.py").write_text(
+        (clone / "src/rattlefit/config.py").read_text() + "\n# changed\n"
+    )
+    assert rt.state(_result(clone), "f", clone) == "stale: what it runs has uncommitted changes"
+    doc = _result(clone)
+    _git(clone, "commit", "--quiet", "-am", "config")
+    assert rt.state(doc, "f", clone).startswith("stale: what it runs changed after")
+    # a change elsewhere leaves it current
+    doc = _result(clone)
+    _commit(clone, "notebooks/README.md", "\nmore words\n")
+    assert rt.state(doc, "f", clone) == "current"
+
+
+def test_a_result_written_from_a_dirty_tree_or_across_a_commit_is_stale(clone):
+    _, rt = _modules()
+    dirty = _result(clone, uncommitted=["src/rattlefit/io/recording.py"])
+    assert rt.state(dirty, "f", clone) == "stale: written with uncommitted changes to what it runs"
+    unrelated = _result(clone, uncommitted=["docs/model.md"])
+    assert rt.state(unrelated, "f", clone) == "current"
+    legacy = {k: v for k, v in _result(clone).items() if k != "uncommitted"}
+    assert rt.state(legacy, "f", clone).startswith("stale: its file does not record")
+    assert rt.state(_result(clone, uncommitted=None), "f", clone) == rt.state(legacy, "f", clone)
+    started = _git(clone, "rev-parse", "--short", "HEAD")
+    ended = _commit(clone, "benchmarks/suite_steps.py", "\n# landed mid-run\n")
+    across = _result(clone, commit=ended, commit_started=started)
+    assert rt.state(across, "f", clone) == "stale: what it runs changed while it ran"
+    docs_only = _commit(clone, "docs/model.md", "\nmore words\n")
+    assert rt.state(_result(clone, commit_started=ended), "f", clone) == "current"
+    assert docs_only != ended
