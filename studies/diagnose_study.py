@@ -5,9 +5,10 @@ The cases are the independent simulator's recordings in ``../shared/recordings/`
 truth), the sets of ``rattlefit.testing.diagnose_sets`` (clean recordings whose model form
 differs from rattlefit's fitted one; recordings with an injected effect of another form), and
 a validation set of the second rig model (``studies/second_rig``, set ``validation``, read
-from ``--validation-dir``; made once from a recorded seed and scored at a frozen method
-commit, so that nothing is tuned against it: its ``manifest.json`` hash is kept in the
-result).
+from ``--validation-dir``; made once from a seed drawn after its method was committed, and
+scored only by a checkout whose package and scoring equal that method commit, which its
+``manifest.json`` names; ``--unfrozen`` scores it anyway and labels the result so; the
+manifest's hash is kept in the result).
 Each case lists the verdicts that count as right: ``none`` or ``unexplained`` for a clean
 recording, the effect (or, for dissipation in contact, any of the dissipative candidates)
 otherwise.
@@ -16,7 +17,7 @@ otherwise.
                                         [--validation-dir DIR]
                                         [--only NAME ...] [--cases-dir DIR [--rows-only]]
                                         [--json out.json] [--quiet]
-                                        [--result README_RESULT.json]
+                                        [--result README_RESULT.json] [--unfrozen]
 
 A full study takes hours: with ``--cases-dir`` each case's row is written there as it ends
 (``<name>.json``) and a case whose row is there is not run again, so an interrupted study
@@ -36,6 +37,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import subprocess
 import time
 from collections import Counter
 from pathlib import Path
@@ -108,6 +110,37 @@ def manifest_hash(directory: Path) -> str:
     import hashlib
 
     return hashlib.sha256((directory / "manifest.json").read_bytes()).hexdigest()
+
+
+#: What a frozen set's score depends on besides the data: the package and the scoring itself.
+METHOD_PATHS = ("src", "studies/diagnose_study.py", "studies/common.py")
+
+
+def frozen_method_problem(directory: Path) -> str:
+    """Why this checkout may not score the validation set in ``directory`` as frozen, or "":
+    its manifest must name the method commit fixed when its seed was drawn, and this checkout's
+    package and scoring must equal that commit's, uncommitted changes included."""
+    manifest = json.loads((directory / "manifest.json").read_text())
+    method = manifest.get("method_commit", "")
+    if not method:
+        return (f"{directory}: its manifest names no method commit (drawn before sets recorded "
+                "one): it is no frozen set; score it with --unfrozen")  # fmt: skip
+    diff = subprocess.run(
+        ["git", "diff", "--name-only", method, "--", *METHOD_PATHS],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    if diff.returncode != 0:
+        return f"{directory}: its method commit {method[:12]} is not in this history"
+    if diff.stdout.strip():
+        changed = diff.stdout.split()
+        where = ", ".join(changed[:3]) + (" …" if len(changed) > 3 else "")
+        return (f"{directory}: drawn for the method of {method[:12]}, but this checkout differs "
+                f"from it in {where}: score it in a worktree of that commit "
+                f"(git worktree add /tmp/method {method[:12]})")  # fmt: skip
+    return ""
 
 
 def model_free_verdict(recording) -> tuple[str, list[dict]]:
@@ -323,6 +356,12 @@ def main() -> None:
     ap.add_argument("--quiet", action="store_true")
     ap.add_argument("--result", help="also write the README result file (with --full)")
     ap.add_argument(
+        "--unfrozen",
+        action="store_true",
+        help="score a validation set at a method other than the one its manifest fixes (the "
+        "result is labelled not frozen)",
+    )
+    ap.add_argument(
         "--rows-only",
         action="store_true",
         help="summarise the rows already in --cases-dir; run no case",
@@ -334,6 +373,9 @@ def main() -> None:
         if which == "shared":
             cases += shared_cases()
         elif which == "validation":
+            problem = "" if args.unfrozen else frozen_method_problem(args.validation_dir)
+            if problem:
+                ap.error(problem)
             cases += validation_cases(args.validation_dir)
         else:
             cases += set_cases(which)
@@ -357,6 +399,7 @@ def main() -> None:
             frozen = {
                 "validation_set": os.path.relpath(args.validation_dir, REPO),
                 "validation_manifest_sha256": manifest_hash(args.validation_dir),
+                "frozen": not args.unfrozen,
             }
         mode = "full" if args.full else "model-free"
         doc = {**provenance(), "mode": mode, **frozen, **result, "cases": rows}

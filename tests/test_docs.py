@@ -96,3 +96,51 @@ def test_remeasure_runs_the_stale_results_and_stops_at_a_failure(monkeypatch):
     ran.clear()
     assert remeasure.run(["fine"]) == 0
     assert ran[1] == "fine" and ran[-1][-1] == "benchmarks/readme_table.py"  # then the tables
+
+
+#: What reads as a measured figure in prose: a count of cases (24/27, 6 of 22), a ratio
+#: (2.8×, 3–6 times, a factor 20–26) or a change (from 5.4 to 3.1, 262 → 30). Settings and
+#: closed forms are written otherwise (ten times as long, R^{3/2}).
+MEASURED = re.compile(
+    r"(?<![\w^{(/.])\d+/\d+(?![\w}/.])"
+    r"|(?<![\d.])\d+ of (the )?\d+\b(?!\.\d)"
+    r"|\d[\d.]*\s?×"
+    r"|\d[\d.]*\s?[–-]\s?\d[\d.]*\s?times"
+    r"|\bfrom (a factor )?\d[\d.]* to \d[\d.]*"
+    r"|\d[\d.]*\s?→\s?\d[\d.]*"
+    r"|factor (of )?\d[\d.]*\s?[–-]\s?\d"
+)
+RESULT_FILE = re.compile(r"(?:benchmarks|studies)/results/[\w./-]+\.json|\b[\w-]+\.json\b")
+PROSE = [*PAGES, ROOT / "CHANGELOG.md"]
+
+
+def uncited_figures(text: str) -> list[str]:
+    """The paragraphs (and list items) of Markdown ``text`` that hold a measured figure
+    (:data:`MEASURED`, outside code) but name no result file."""
+    text = re.sub(r"```.*?```", "", text, flags=re.S)
+    bad = []
+    for block in re.split(r"\n\s*\n|\n(?=\s*(?:[*-]|\d+\.) )", text):
+        if block.lstrip().startswith(("|", "<!--")):
+            continue  # the generated results tables
+        if MEASURED.search(re.sub(r"`[^`]*`", "", block)) and not RESULT_FILE.search(block):
+            bad.append(" ".join(block.split())[:160])
+    return bad
+
+
+def test_the_figure_detector_needs_a_result_file_beside_a_figure():
+    assert uncited_figures("Coverage is 24/27 on the grid.")
+    assert uncited_figures("It narrows `a` from a factor 5.4 to 3.1.")
+    assert uncited_figures("- about 2.8× the samples\n- and more")
+    assert not uncited_figures("Coverage is 24/27 (`studies/results/companion.json`).")
+    assert not uncited_figures("The film's momentum ∝ R^{3/2}; the same test ten times as long.")
+
+
+@pytest.mark.parametrize("page", PROSE, ids=lambda p: p.name)
+def test_every_measured_figure_in_the_prose_names_its_result_file(page):
+    # a figure in docs/, the README or the changelog comes from a committed result file, and
+    # says which, or it goes
+    text = page.read_text(encoding="utf-8")
+    assert not uncited_figures(text), "\n".join(uncited_figures(text))
+    named = re.findall(r"(?:benchmarks|studies)/results/[\w./-]+\.json", text)
+    missing = sorted({n for n in named if not (ROOT / n).is_file()})
+    assert not missing, f"{page.name} names result files that do not exist: {missing}"

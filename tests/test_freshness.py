@@ -116,3 +116,26 @@ def test_a_result_written_from_a_dirty_tree_or_across_a_commit_is_stale(clone):
     docs_only = _commit(clone, "docs/model.md", "\nmore words\n")
     assert rt.state(_result(clone, commit_started=ended), "f", clone) == "current"
     assert docs_only != ended
+
+
+def _diagnose_study():
+    sys.path.insert(0, str(ROOT / "studies"))
+    try:
+        import diagnose_study
+    finally:
+        sys.path.remove(str(ROOT / "studies"))
+    return diagnose_study
+
+
+def test_a_validation_set_is_scored_only_at_the_method_it_was_drawn_for(tmp_path):
+    study = _diagnose_study()
+    manifest = tmp_path / "manifest.json"
+    manifest.write_text('{"seed": 1}')
+    assert "no method commit" in study.frozen_method_problem(tmp_path)
+    # a method commit whose package differs from this checkout's: refused, naming a path
+    first = _git(ROOT, "rev-list", "--max-parents=0", "HEAD").split()[0]
+    manifest.write_text(f'{{"seed": 1, "method_commit": "{first}"}}')
+    problem = study.frozen_method_problem(tmp_path)
+    assert f"drawn for the method of {first[:12]}" in problem and "src/" in problem
+    manifest.write_text('{"seed": 1, "method_commit": "0123456789abcdef"}')
+    assert "not in this history" in study.frozen_method_problem(tmp_path)

@@ -16,7 +16,9 @@ values, effect sizes, initial state and encoder zeros follow. The set's plan (wh
 which pair and lubrication) is fixed. A file that exists, whose truth entry is unchanged and
 whose SHA-256 is the manifest's, is skipped; the rest are simulated together in one
 vectorised run and written. ``manifest.json`` holds the seed, the generator version and every
-file's SHA-256 (and that of its count data), which identify a frozen set.
+file's SHA-256 (and that of its count data), which identify a frozen set, and
+``method_commit``: the checkout's HEAD when the seed was drawn, the only method
+``studies/diagnose_study.py --full`` scores the set at. Commit the method first, then draw.
 
 Truth entries, by file stem: ``a_mm`` (the rattlefit film half-length with this film's squeeze
 momentum — see :mod:`rig_film`; oil jet: the flooded film's wetted half-length, beyond what
@@ -36,6 +38,7 @@ import itertools
 import json
 import math
 import os
+import subprocess
 import sys
 import time
 from dataclasses import dataclass
@@ -527,6 +530,18 @@ def unchanged(path: Path, entry: dict, old_truth: dict, manifest: dict, seed: in
     )
 
 
+def method_commit() -> str:
+    """The full hash of this checkout's HEAD, where the set's method is fixed; "" outside git."""
+    out = subprocess.run(
+        ["git", "rev-parse", "HEAD"],
+        cwd=Path(__file__).resolve().parent,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    return out.stdout.strip()
+
+
 def build(out: Path, seed: int = SEED, say=print) -> dict:
     """Generate the set into ``out`` (see the module notes); returns the manifest."""
     out.mkdir(parents=True, exist_ok=True)
@@ -558,10 +573,13 @@ def build(out: Path, seed: int = SEED, say=print) -> dict:
     _dump(out / "truth.json", truth)
     for stray in sorted(set(out.glob("*.h5")) - {out / f"{n}.h5" for n in truth}):
         say(f"{stray.name}: not part of this set (left alone)")
+    same = old_manifest.get("seed") == seed and old_manifest.get("version") == VERSION
     manifest = {
         "generator": "studies/second_rig/validation_set.py",
         "version": VERSION,
         "seed": seed,
+        # the method the set is to be scored at: the checkout's when the seed was first drawn
+        "method_commit": old_manifest.get("method_commit") if same else method_commit(),
         "truth_sha256": sha256(out / "truth.json"),
         "files": {f"{n}.h5": files[f"{n}.h5"] for n in truth},
     }
