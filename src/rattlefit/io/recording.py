@@ -48,6 +48,7 @@ __all__ = [
     "check_recording",
     "inspect_warnings",
     "max_count_jump",
+    "read_provenance",
     "read_recording",
     "read_truth",
     "recording_of",
@@ -376,14 +377,33 @@ def recording_of(
     )
 
 
+#: The optional group in which an imported recording keeps where it came from
+#: (:mod:`rattlefit.io.rig_files`).
+PROVENANCE_GROUP = "/provenance"
+
+
 def read_truth(path: str | os.PathLike[str]) -> dict[str, str | int | float] | None:
     """Attributes of the optional ``/truth`` group (parameters of a synthetic recording).
 
     Returns ``None`` when the file has no such group. Values are plain Python str/int/float.
     """
+    return read_attribute_group(path, TRUTH_GROUP)
+
+
+def read_provenance(path: str | os.PathLike[str]) -> dict[str, str | int | float] | None:
+    """Attributes of the optional ``/provenance`` group (what an imported recording came
+    from: source file, its SHA-256, the channel map, …); ``None`` when the file has none."""
+    return read_attribute_group(path, PROVENANCE_GROUP)
+
+
+def read_attribute_group(
+    path: str | os.PathLike[str], group: str
+) -> dict[str, str | int | float] | None:
+    """The attributes of the optional ``group`` as plain Python str/int/float, or ``None``
+    when the file has no such group."""
     file = os.fspath(path)
-    with _open(Path(file), file) as f, guard(file, TRUTH_GROUP):
-        obj = f.get(TRUTH_GROUP)
+    with _open(Path(file), file) as f, guard(file, group):
+        obj = f.get(group)
         if not isinstance(obj, h5py.Group):
             return None
         out: dict[str, str | int | float] = {}
@@ -391,14 +411,14 @@ def read_truth(path: str | os.PathLike[str]) -> dict[str, str | int | float] | N
             kind: Kind = "int" if isinstance(raw, np.integer) else "float"
             if isinstance(raw, str | bytes | np.bytes_):
                 kind = "str"
-            out[name] = coerce_value(raw, FieldSpec(TRUTH_GROUP, name, kind), file)
+            out[name] = coerce_value(raw, FieldSpec(group, name, kind), file)
         return out
 
 
 # --- Writing -----------------------------------------------------------------------------------
 
 
-def _write_h5(rec: Recording, target: str, extra: Mapping[str, str | int | float]) -> None:
+def _write_h5(rec: Recording, target: str, extras: Mapping[str, Mapping]) -> None:
     groups = _groups_of(rec)
     with h5py.File(target, "w") as f:
         for group, attrs in groups.items():
@@ -410,10 +430,11 @@ def _write_h5(rec: Recording, target: str, extra: Mapping[str, str | int | float
             f["/encoders"].create_dataset(
                 name, data=data, dtype=np.int64, compression="gzip", shuffle=True
             )
-        if extra:
-            truth = f.create_group(TRUTH_GROUP)
-            for name, value in extra.items():
-                truth.attrs[name] = value
+        for group, attrs in extras.items():
+            if attrs:
+                obj = f.create_group(group)
+                for name, value in attrs.items():
+                    obj.attrs[name] = value
 
 
 def write_recording(
@@ -422,6 +443,7 @@ def write_recording(
     *,
     overwrite: bool = True,
     extra_attrs: Mapping[str, str | int | float] | None = None,
+    provenance: Mapping[str, str | int | float] | None = None,
 ) -> Path:
     """Validate ``recording`` and write it atomically in format version 1.
 
@@ -440,6 +462,9 @@ def write_recording(
     extra_attrs : mapping of str to str, int or float, optional
         Written as attributes of a ``/truth`` group (e.g. the parameters a synthetic
         recording was simulated with); read back with :func:`read_truth`.
+    provenance : mapping of str to str, int or float, optional
+        Written as attributes of a ``/provenance`` group (what an imported recording came
+        from); read back with :func:`read_provenance`.
 
     Returns
     -------
@@ -449,20 +474,21 @@ def write_recording(
     dest = Path(path)
     file = os.fspath(dest)
     check_recording(recording, file)
-    extra = dict(extra_attrs or {})
-    for name, value in extra.items():
-        if not name or "/" in name:
-            raise RecordingError(file, f"{TRUTH_GROUP}@{name}", "invalid attribute name")
-        if isinstance(value, bool) or not isinstance(value, str | int | float):
-            raise RecordingError(
-                file, f"{TRUTH_GROUP}@{name}", f"expected a str, int or float, got {value!r}"
-            )
+    extras = {TRUTH_GROUP: dict(extra_attrs or {}), PROVENANCE_GROUP: dict(provenance or {})}
+    for group, attrs in extras.items():
+        for name, value in attrs.items():
+            if not name or "/" in name:
+                raise RecordingError(file, f"{group}@{name}", "invalid attribute name")
+            if isinstance(value, bool) or not isinstance(value, str | int | float):
+                raise RecordingError(
+                    file, f"{group}@{name}", f"expected a str, int or float, got {value!r}"
+                )
     if not overwrite and dest.exists():
         raise RecordingError(file, "/", "file exists and overwrite=False")
     if not dest.parent.is_dir():
         raise RecordingError(file, "/", f"directory {dest.parent} does not exist")
     try:
-        atomic_write(dest, lambda tmp: _write_h5(recording, os.fspath(tmp), extra))
+        atomic_write(dest, lambda tmp: _write_h5(recording, os.fspath(tmp), extras))
     except OSError as exc:
         raise RecordingError(file, "/", f"cannot write the file: {exc}") from None
     return dest

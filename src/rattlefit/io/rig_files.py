@@ -1,142 +1,173 @@
-"""Rig files in: LabView TDMS and CSV turned into recording-format v1, through a channel map.
+"""Rig files in: LabView TDMS and delimited text (CSV, tab-separated ``.txt``) turned into
+recording-format v1, through a channel map (:mod:`.channel_map`).
 
-A channel map is a small TOML file (format ``rattlefit.channel-map``, version 1) that says
-which channels hold the two encoders' counts and everything else the format needs::
-
-    format = "rattlefit.channel-map"
-    version = 1
-    title = "pair II, 65.6 mm, boundary"          # optional
-
-    [encoders]
-    primary = "Encoders/primary"      # TDMS: "group/channel"; CSV: the column's header
-    secondary = "Encoders/secondary"
-    counts_per_rev = 40000
-    sample_rate_hz = 10000            # optional for TDMS channels with wf_increment, and for
-                                      # CSV with a time column
-    # time = "t"                      # CSV only: a time column (s), for the sample rate
-
-    [gear_pair]                       # every attribute of the format's /gear_pair
-    [operating]                       # every attribute of /operating
-    [oil]                             # every attribute of /oil
-
-The ``[gear_pair]``, ``[operating]`` and ``[oil]`` tables carry the format's attributes under
-their own names (``../shared/recording-format.md``, ``docs/recording-format.md``), and are
-validated by the same schema and cross-field checks as :func:`~rattlefit.io.recording.
-read_recording`, so an error names the map file and the format's field
-(``/operating@lubrication``). Counts may be stored as integers or as floats holding integers.
+The pipeline: read the map; read the two encoder channels (:mod:`.tdms`,
+:mod:`.delimited_text`); settle the sample rate and the unit between the map and the file (a
+conflict is an error naming both values); convert degrees or radians to counts; unwrap a
+counter's rollover where the map asks; validate everything as a recording; write it
+atomically, with the import's provenance in ``/provenance`` (source file, its size, SHA-256
+and modification time, the map's text, rattlefit's version).
 """
 
 from __future__ import annotations
 
-import csv
 import dataclasses
+import hashlib
 import os
-import tomllib
+import time
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from ..errors import RecordingError
-from .recording import Recording, check_recording, recording_of, write_recording
+from ..version import __version__
+from .channel_map import GROUPS, UNITS, read_channel_map, unit_name
+from .delimited_text import delimited_columns
+from .recording import Recording, check_recording, max_count_jump, recording_of, write_recording
 from .schema import FORMAT_NAME, FORMAT_VERSION, validate_attrs
+from .tdms import tdms_channels
 
-#: Format tag and version of a channel map.
-MAP_FORMAT, MAP_VERSION = "rattlefit.channel-map", 1
-#: The recording groups a map carries as TOML tables.
-GROUPS = ("gear_pair", "operating", "oil")
+#: The file endings read as TDMS and as delimited text.
+TDMS_SUFFIXES = (".tdms",)
+TEXT_SUFFIXES = (".csv", ".txt", ".tsv", ".dat")
+#: Relative difference between the map's and the file's sample rate taken as a conflict.
+RATE_TOLERANCE = 1e-6
+#: Largest distance from a whole count that a converted angle may have (counts).
+COUNT_TOLERANCE = 1e-3
 
 
-def read_channel_map(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """The channel map in the TOML file ``path``, its format and version checked. Raises
-    :class:`~rattlefit.errors.RecordingError` naming the file and the field."""
-    file = os.fspath(path)
-    try:
-        with open(file, "rb") as f:
-            doc = tomllib.load(f)
-    except OSError as exc:
-        raise RecordingError(file, "/", f"cannot read the channel map ({exc.strerror})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise RecordingError(file, "/", f"not valid TOML ({exc})") from None
-    if doc.get("format") != MAP_FORMAT or doc.get("version") != MAP_VERSION:
+@dataclasses.dataclass(frozen=True)
+class RigChannels:
+    """The two encoder channels as read, in the file's unit, with the rate and the unit the
+    file states (None and "" where it states none)."""
+
+    primary: np.ndarray
+    secondary: np.ndarray
+    sample_rate_hz: float | None
+    unit: str
+
+
+def read_rig_channels(source: str, doc: dict) -> RigChannels:
+    """The encoder channels the map ``doc`` names in the rig file ``source``, by its ending."""
+    enc = doc["encoders"]
+    names = [str(enc["primary"]), str(enc["secondary"])]
+    suffix = Path(source).suffix.lower()
+    if suffix in TDMS_SUFFIXES:
+        read = tdms_channels(source, names)
+        return RigChannels(*read.data, read.sample_rate_hz, read.unit)
+    if suffix in TEXT_SUFFIXES:
+        (p, s), rate = delimited_columns(source, names, enc.get("time"), doc.get("text", {}))
+        return RigChannels(p, s, rate, "")
+    known = ", ".join(TDMS_SUFFIXES + TEXT_SUFFIXES)
+    raise RecordingError(source, "/", f"not a rig file rattlefit reads ({known})")
+
+
+def settled_rate(channels: RigChannels, enc: dict, source: str, map_file: str) -> float:
+    """The sample rate: the file's or the map's; both must agree where both state one."""
+    mapped, found = enc.get("sample_rate_hz"), channels.sample_rate_hz
+    if mapped is None and found is None:
         raise RecordingError(
-            file,
-            "format",
-            f"expected format = {MAP_FORMAT!r} and version = {MAP_VERSION}, got "
-            f"{doc.get('format')!r} and {doc.get('version')!r}",
+            map_file, "[encoders].sample_rate_hz", "missing, and the source gives none"
         )
-    for table in ("encoders", *GROUPS):
-        if not isinstance(doc.get(table), dict):
-            raise RecordingError(file, f"[{table}]", "missing table")
-    for name in ("primary", "secondary", "counts_per_rev"):
-        if name not in doc["encoders"]:
-            raise RecordingError(file, f"[encoders].{name}", "missing")
-    return doc
+    if mapped is not None and found is not None:
+        if abs(mapped - found) > RATE_TOLERANCE * found:
+            raise RecordingError(
+                map_file,
+                "[encoders].sample_rate_hz",
+                f"{mapped:g} Hz, but {Path(source).name} gives {found:.9g} Hz ("
+                + (
+                    "its channels' wf_increment"
+                    if Path(source).suffix.lower() in TDMS_SUFFIXES
+                    else "its time column"
+                )
+                + "): remove the map's value, or make the two agree",
+            )
+    return float(found if found is not None else mapped)
 
 
-def tdms_channels(path: str, names: list[str]) -> tuple[list[np.ndarray], float | None]:
-    """The channels ``names`` ("group/channel") of the TDMS file ``path``, and the sample
-    rate their ``wf_increment`` property gives (None without one)."""
-    from nptdms import TdmsFile
-
-    try:
-        tdms = TdmsFile.read(path)
-    except (OSError, ValueError, KeyError) as exc:
-        raise RecordingError(path, "/", f"cannot read the TDMS file ({exc})") from None
-    data, rates = [], set()
-    for name in names:
-        group, _, channel = name.partition("/")
-        try:
-            ch = tdms[group][channel]
-        except KeyError:
-            raise RecordingError(path, name, "no such group/channel in the TDMS file") from None
-        data.append(np.asarray(ch[:]))
-        if "wf_increment" in ch.properties:
-            rates.add(1.0 / float(ch.properties["wf_increment"]))
-    if len(rates) > 1:
-        raise RecordingError(path, names[1], f"sample rates differ between channels: {rates}")
-    return data, rates.pop() if rates else None
+def settled_unit(channels: RigChannels, enc: dict, source: str, map_file: str) -> str:
+    """The channels' unit (a key of :data:`~.channel_map.UNITS`): the map's ``unit`` or the
+    file's; both must name the same unit where both state one."""
+    mapped = unit_name(enc["unit"]) if "unit" in enc else None
+    found = unit_name(channels.unit) if channels.unit else None
+    if channels.unit and found is None:
+        raise RecordingError(
+            source,
+            str(enc["primary"]),
+            f"unit_string {channels.unit!r} is no encoder unit rattlefit converts "
+            f"({', '.join(UNITS)}): set [encoders].unit if the values are one of these",
+        )
+    if mapped and found and mapped != found:
+        raise RecordingError(
+            map_file,
+            "[encoders].unit",
+            f"{enc['unit']!r}, but {Path(source).name} says {channels.unit!r}",
+        )
+    return mapped or found or "counts"
 
 
-def csv_channels(
-    path: str, names: list[str], time: str | None
-) -> tuple[list[np.ndarray], float | None]:
-    """The columns ``names`` of the CSV file ``path`` (a header row, then one row per
-    sample), and the sample rate from the ``time`` column (s) when given."""
-    try:
-        with open(path, newline="") as f:
-            rows = list(csv.reader(f))
-    except OSError as exc:
-        raise RecordingError(path, "/", f"cannot read the CSV file ({exc.strerror})") from None
-    if len(rows) < 3:
-        raise RecordingError(path, "/", "needs a header row and at least two samples")
-    header = [h.strip() for h in rows[0]]
-    wanted = names + ([time] if time else [])
-    columns = []
-    for name in wanted:
-        if name not in header:
-            raise RecordingError(path, name, f"no such column (the header has {header})")
-        k = header.index(name)
-        try:
-            columns.append(np.array([float(r[k]) for r in rows[1:]]))
-        except (ValueError, IndexError):
-            raise RecordingError(path, name, "a row has no number in this column") from None
-    rate = None
-    if time:
-        step = np.diff(columns.pop())
-        if np.any(step <= 0) or np.ptp(step) > 1e-6 * np.mean(step):
-            raise RecordingError(path, time, "the time column is not evenly increasing")
-        rate = 1.0 / float(np.mean(step))
-    return columns, rate
-
-
-def as_counts(values: np.ndarray, file: str, field: str) -> np.ndarray:
-    """Encoder counts as int64; floats must hold integers."""
-    if values.dtype.kind in "iu":
+def to_counts(values: np.ndarray, unit: str, counts_per_rev: int, file: str, field: str):
+    """Encoder values in ``unit`` as int64 counts. Raises naming the file and channel when they
+    are not whole counts, with the likely cause."""
+    if unit == "counts" and values.dtype.kind in "iu":
         return values.astype(np.int64)
-    if not np.all(np.isfinite(values)) or np.any(values != np.round(values)):
-        raise RecordingError(file, field, "counts must be integers (found fractional values)")
-    return np.round(values).astype(np.int64)
+    scaled = values.astype(np.float64)
+    if UNITS[unit] is not None:
+        scaled = scaled * UNITS[unit] * counts_per_rev
+    off = np.abs(scaled - np.round(scaled)) if np.all(np.isfinite(scaled)) else np.array([np.inf])
+    tolerance = 0.0 if unit == "counts" else COUNT_TOLERANCE
+    if np.any(off > tolerance):
+        hint = (
+            '; if they are angles, set [encoders].unit = "deg" or "rad"'
+            if unit == "counts"
+            else f"; is counts_per_rev = {counts_per_rev} the encoder's?"
+        )
+        what = "counts must be integers (found fractional values" + (
+            ")" if unit == "counts" else f" after converting from {unit}, up to {off.max():.3g})"
+        )
+        raise RecordingError(file, field, what + hint)
+    return np.round(scaled).astype(np.int64)
+
+
+def unwrapped(counts: np.ndarray, bits: int | None) -> np.ndarray:
+    """Counts of a counter that wraps at 2^``bits``, made cumulative (no change without)."""
+    if bits is None:
+        return counts
+    span = 2**bits
+    step = np.diff(counts)
+    step = step - span * np.round(step / span).astype(np.int64)
+    return np.concatenate([counts[:1], counts[0] + np.cumsum(step)])
+
+
+def wrap_hint(rec: Recording, bits: int | None) -> str:
+    """A note for a count jump too large to be motion: most likely a counter that wrapped."""
+    if bits is not None:
+        return ""
+    allowed = max_count_jump(rec.counts_per_rev, rec.sample_rate_hz, rec.operating)
+    for counts in (rec.primary, rec.secondary):
+        jump = int(np.max(np.abs(np.diff(counts)))) if counts.size > 1 else 0
+        if jump > allowed:
+            guess = max(8, int(np.ceil(np.log2(jump))))
+            return f" (a counter that wraps? set [encoders].rollover_bits = {guess})"
+    return ""
+
+
+def provenance_of(source: str, map_file: str) -> dict[str, str | int]:
+    """What the import came from: the source's name, size, SHA-256 and modification time
+    (UTC), the channel map's text, and rattlefit's version."""
+    digest = hashlib.sha256()
+    with open(source, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    stat = os.stat(source)
+    return {
+        "source": Path(source).name,
+        "source_bytes": int(stat.st_size),
+        "source_sha256": digest.hexdigest(),
+        "source_modified_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(stat.st_mtime)),
+        "channel_map": Path(map_file).read_text(encoding="utf-8"),
+        "imported_by": f"rattlefit {__version__}",
+    }
 
 
 def import_recording(
@@ -146,41 +177,37 @@ def import_recording(
     *,
     overwrite: bool = True,
 ) -> Recording:
-    """Turn the rig file ``source`` (``.tdms`` or ``.csv``) into a recording-format v1 file
-    ``output`` through the TOML ``channel_map`` (module docstring), written atomically.
+    """Turn the rig file ``source`` (TDMS, or CSV and other delimited text) into a
+    recording-format v1 file ``output`` through the TOML ``channel_map``
+    (:mod:`.channel_map`), written atomically with its provenance (module notes).
 
     Returns the recording (with ``path`` set to ``output``). Raises
     :class:`~rattlefit.errors.RecordingError`, naming the file (the source or the map) and
-    the field, for an unreadable file, a missing channel or map field, fractional counts, or
-    any value the recording format rejects; nothing is written then.
+    the field, for an unreadable file, a missing channel or map field, a conflict between the
+    map and the file, values that are not whole counts, or any value the recording format
+    rejects; nothing is written then.
     """
     source, map_file = os.fspath(source), os.fspath(channel_map)
     doc = read_channel_map(map_file)
     enc = doc["encoders"]
-    names = [str(enc["primary"]), str(enc["secondary"])]
-    suffix = Path(source).suffix.lower()
-    if suffix == ".tdms":
-        (primary, secondary), rate = tdms_channels(source, names)
-    elif suffix == ".csv":
-        (primary, secondary), rate = csv_channels(source, names, enc.get("time"))
-    else:
-        raise RecordingError(source, "/", "not a rig file rattlefit reads (.tdms or .csv)")
-    rate = enc.get("sample_rate_hz", rate)
-    if rate is None:
-        raise RecordingError(
-            map_file, "[encoders].sample_rate_hz", "missing, and the source gives none"
-        )
+    channels = read_rig_channels(source, doc)
+    rate = settled_rate(channels, enc, source, map_file)
+    unit = settled_unit(channels, enc, source, map_file)
+    cpr, bits = int(enc["counts_per_rev"]), enc.get("rollover_bits")
     root = {"format": FORMAT_NAME, "format_version": FORMAT_VERSION}
     if "title" in doc:
         root["title"] = doc["title"]
-    groups = {
-        "/": root,
-        "/encoders": {"sample_rate_hz": rate, "counts_per_rev": enc["counts_per_rev"]},
-    }
+    groups = {"/": root, "/encoders": {"sample_rate_hz": rate, "counts_per_rev": cpr}}
     groups.update({f"/{g}": doc[g] for g in GROUPS})
     values = validate_attrs(groups, map_file)
-    primary = as_counts(primary, source, names[0])
-    rec = recording_of(values, primary, as_counts(secondary, source, names[1]), source)
-    check_recording(rec, source)
-    write_recording(rec, output, overwrite=overwrite)
+    counts = [
+        unwrapped(to_counts(getattr(channels, k), unit, cpr, source, str(enc[k])), bits)
+        for k in ("primary", "secondary")
+    ]
+    rec = recording_of(values, *counts, source)
+    try:
+        check_recording(rec, source)
+    except RecordingError as exc:
+        raise RecordingError(exc.file, exc.field, exc.problem + wrap_hint(rec, bits)) from None
+    write_recording(rec, output, overwrite=overwrite, provenance=provenance_of(source, map_file))
     return dataclasses.replace(rec, path=os.fspath(output))

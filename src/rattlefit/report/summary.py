@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..io.recording import Recording, inspect_warnings
+from ..io.recording import Recording, inspect_warnings, read_provenance
 
 
 def recording_summary(rec: Recording, file: str | Path | None = None) -> dict:
@@ -14,8 +14,9 @@ def recording_summary(rec: Recording, file: str | Path | None = None) -> dict:
     ``file`` names the recording (default: its path). Angles in rad, lengths in m unless the
     key says mm, torques in N m, viscosity in Pa s, speeds in rad/s, frequencies in Hz;
     ``notes`` holds :func:`~rattlefit.io.recording.inspect_warnings`' sentences (empty when
-    nothing looks wrong). Raises :class:`~rattlefit.errors.RattlefitError` for a recording
-    whose gear pair cannot be built.
+    nothing looks wrong); ``provenance`` what an imported recording came from
+    (:func:`~rattlefit.io.recording.read_provenance`; None for any other). Raises
+    :class:`~rattlefit.errors.RattlefitError` for a recording whose gear pair cannot be built.
     """
     from ..rig import setup
 
@@ -46,6 +47,7 @@ def recording_summary(rec: Recording, file: str | Path | None = None) -> dict:
         "relative_motion_ptp_rad": float(rec.relative_motion.max() - rec.relative_motion.min()),
         "rattle_index_rad_hz": rig.rattle_index(),
         "no_rattle_drag_torque_Nm": rig.no_rattle_drag_torque(),
+        "provenance": read_provenance(rec.path) if rec.path else None,
         "notes": inspect_warnings(rec),
     }
 
@@ -83,12 +85,28 @@ def summary_rows(summary: dict) -> list[tuple[str, str]]:
             f"{summary['samples']} samples at {summary['sample_rate_hz']:g} Hz = "
             f"{summary['duration_s']:g} s",
         ),
+        *imported_row(summary.get("provenance")),
         ("IGR", f"{summary['rattle_index_rad_hz']:.4g} rad·Hz (20–5000 Hz, eq. 10)"),
         (
             "rattle",
             f"expected unless T_b > {summary['no_rattle_drag_torque_Nm']:.4f} N m "
             "(Singh et al. 1989: I2·(r1/r2)·max θ̈1)",
         ),
+    ]
+
+
+def imported_row(provenance: dict | None) -> list[tuple[str, str]]:
+    """The ``imported`` row of an imported recording's summary (none for any other)."""
+    if not provenance:
+        return []
+    return [
+        (
+            "imported",
+            f"from {provenance.get('source', '?')} (SHA-256 "
+            f"{str(provenance.get('source_sha256', ''))[:12]}…, modified "
+            f"{provenance.get('source_modified_utc', '?')}) by "
+            f"{provenance.get('imported_by', '?')}",
+        )
     ]
 
 
