@@ -37,6 +37,7 @@ RECIPES: dict[str, tuple[str, float]] = {
         10,
     ),
     "campaign.json": ("python benchmarks/campaign_throughput.py", 6),
+    "startup.json": ("python benchmarks/startup.py --json benchmarks/results/startup.json", 1),
     "diagnose_time.json": (
         "python benchmarks/diagnose_time.py --json benchmarks/results/diagnose_time.json",
         8,

@@ -311,3 +311,24 @@ def test_identify_suggest_adds_information_and_never_widens(tmp_path):
     bounded = [k for k, f in now["factors"].items() if f is not None]
     assert any(longer["factors"][k] < now["factors"][k] * (1 - 1e-6) for k in bounded)
     assert any("oil-jet companion" in r["recording"] for r in rest)
+
+
+def test_help_and_version_start_without_jax_or_scipy():
+    # the command line's start-up: --help and --version import neither JAX nor SciPy (what
+    # makes them take seconds); a command still configures JAX before it runs
+    probe = (
+        "import sys; from click.testing import CliRunner; from rattlefit.cli import main; "
+        "r = [CliRunner().invoke(main, a) for a in (['--help'], ['--version'], "
+        "['identify', '--help'])]; "
+        "print(all(x.exit_code == 0 for x in r), 'jax' in sys.modules, 'scipy' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+    assert out.stdout.split() == ["True", "False", "False"], out.stdout + out.stderr
+    file = str(DATA / "pairII_boundary_65.6_20pct_16Hz.h5")
+    probe = (
+        "import sys; from click.testing import CliRunner; from rattlefit.cli import main; "
+        f"r = CliRunner().invoke(main, ['info', {file!r}]); "
+        "import jax; print(r.exit_code, jax.config.jax_enable_x64)"
+    )
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+    assert out.stdout.split() == ["0", "True"], out.stdout + out.stderr

@@ -13,36 +13,52 @@ The main API: :func:`read_recording`, :func:`identify` with :class:`FitOptions` 
 :class:`FitResult`), :func:`sample`, :func:`diagnose`, :func:`synthesize` and :func:`simulate`.
 """
 
-from .compile_cache import use_compilation_cache
-from .config import Configuration, configure
-from .diagnosis import DiagnoseOptions, Diagnosis, diagnose
-from .errors import ParameterError, RattlefitError, RecordingError, SolverError
-from .inference import (
-    FitOptions,
-    FitResult,
-    FittedState,
-    Posterior,
-    SampleOptions,
-    identify,
-    sample,
-)
-from .io.recording import Recording, read_recording, write_recording
-from .physics.drive import Drive
-from .physics.geometry import GearGeometry, table2_pair
-from .physics.model import (
-    Effect,
-    RattleModel,
-    RattleParams,
-    Smoothing,
-    film_for_squeeze_momentum,
-    squeeze_momentum,
-)
-from .physics.oil import dynamic_viscosity
-from .reproducibility import platform_info
-from .simulation.parallel import use_cpu_cores
-from .simulation.solve import Solution, simulate, simulate_batch
-from .simulation.synthetic import synthesize
+from __future__ import annotations
+
+import importlib
+
 from .version import __version__ as __version__
+
+#: Where each public name lives: imported on first use (PEP 562), so that importing
+#: rattlefit (and starting the command line for --help) loads neither JAX nor SciPy.
+_LAZY = {
+    "use_compilation_cache": ".compile_cache",
+    "Configuration": ".config",
+    "configure": ".config",
+    "DiagnoseOptions": ".diagnosis",
+    "Diagnosis": ".diagnosis",
+    "diagnose": ".diagnosis",
+    "ParameterError": ".errors",
+    "RattlefitError": ".errors",
+    "RecordingError": ".errors",
+    "SolverError": ".errors",
+    "FitOptions": ".inference",
+    "FitResult": ".inference",
+    "FittedState": ".inference",
+    "Posterior": ".inference",
+    "SampleOptions": ".inference",
+    "identify": ".inference",
+    "sample": ".inference",
+    "Recording": ".io.recording",
+    "read_recording": ".io.recording",
+    "write_recording": ".io.recording",
+    "Drive": ".physics.drive",
+    "GearGeometry": ".physics.geometry",
+    "table2_pair": ".physics.geometry",
+    "Effect": ".physics.model",
+    "RattleModel": ".physics.model",
+    "RattleParams": ".physics.model",
+    "Smoothing": ".physics.model",
+    "film_for_squeeze_momentum": ".physics.model",
+    "squeeze_momentum": ".physics.model",
+    "dynamic_viscosity": ".physics.oil",
+    "platform_info": ".reproducibility",
+    "use_cpu_cores": ".simulation.parallel",
+    "Solution": ".simulation.solve",
+    "simulate": ".simulation.solve",
+    "simulate_batch": ".simulation.solve",
+    "synthesize": ".simulation.synthetic",
+}
 
 __all__ = [
     "Configuration",
@@ -82,3 +98,21 @@ __all__ = [
     "use_cpu_cores",
     "write_recording",
 ]
+
+
+def __getattr__(name: str):
+    """A public name (:data:`_LAZY`) or a submodule, imported on first use."""
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
+        globals()[name] = value
+        return value
+    try:
+        return importlib.import_module(f".{name}", __name__)
+    except ModuleNotFoundError as exc:
+        if exc.name != f"{__name__}.{name}":
+            raise
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -14,15 +14,18 @@ from pathlib import Path
 
 import click
 
-from .config import quietly_configure
 from .errors import RattlefitError
 
 EXIT_INPUT = 2
 
 
 def _clean_errors(func):
+    """Run a command after :func:`_configure`, with every library error as one line on stderr
+    and exit status 2."""
+
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
+        _configure()
         try:
             return func(*args, **kwargs)
         except RattlefitError as exc:
@@ -30,6 +33,16 @@ def _clean_errors(func):
             sys.exit(EXIT_INPUT)
 
     return wrapper
+
+
+def _configure() -> None:
+    """64-bit mode, the instruction-set cap, one JAX CPU device per core and compiled programs
+    kept on disk ($RATTLEFIT_CACHE_DIR), before a command runs (not for --help or --version,
+    which then start without JAX); the device count is left as it is (silently) when JAX has
+    already started in this process, e.g. under a test runner."""
+    from .config import quietly_configure
+
+    quietly_configure(compilation_cache=True)
 
 
 def _write_json(path: Path, doc: dict) -> None:
@@ -189,10 +202,6 @@ def _priors(texts) -> dict:
 @click.version_option(package_name="rattlefit")
 def main() -> None:
     """Identify the physics of idle gear rattle from encoder recordings."""
-    # 64-bit mode, the instruction-set cap, one JAX CPU device per core and compiled programs
-    # kept on disk ($RATTLEFIT_CACHE_DIR); the device count is left as it is (silently) when
-    # JAX has already started in this process, e.g. under a test runner
-    quietly_configure(compilation_cache=True)
 
 
 @main.command()
