@@ -6,6 +6,7 @@ from __future__ import annotations
 import re
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import pytest
@@ -144,3 +145,74 @@ def test_every_measured_figure_in_the_prose_names_its_result_file(page):
     named = re.findall(r"(?:benchmarks|studies)/results/[\w./-]+\.json", text)
     missing = sorted({n for n in named if not (ROOT / n).is_file()})
     assert not missing, f"{page.name} names result files that do not exist: {missing}"
+
+
+#: The pages whose commands a user copies: every ``rattlefit …`` line in their code.
+COMMAND_PAGES = [*PAGES, ROOT / "data" / "README.md", ROOT / "notebooks" / "README.md"]
+
+
+def documented_commands(text: str) -> list[str]:
+    """Every ``rattlefit …`` command in Markdown ``text``'s code (fenced or indented), with
+    its continuation lines joined and any trailing comment dropped."""
+    commands, current, fenced = [], None, False
+    for line in text.splitlines():
+        body = line.strip()
+        if body.startswith("```"):
+            fenced = not fenced
+            continue
+        if current is not None:
+            current += " " + body.rstrip("\\").strip()
+        elif body.startswith("rattlefit ") and (fenced or line.startswith("    ")):
+            current = body.rstrip("\\").strip()
+        if current is not None and not body.endswith("\\"):
+            commands.append(re.sub(r"\s+#.*$", "", current))
+            current = None
+    return commands
+
+
+def parse_command(words: list[str]) -> None:
+    """Parse ``rattlefit`` arguments ``words`` as the CLI would, running nothing. Raises
+    click's UsageError for an unknown option or command, a bad choice or a missing value; a
+    path that does not exist here (a placeholder such as FILE.h5) is not an error."""
+    import click
+
+    from rattlefit.cli import main
+
+    ctx = main.make_context("rattlefit", list(words))
+    command, group = main, ctx
+    while isinstance(command, click.Group):
+        with warnings.catch_warnings():  # click 8.2 deprecates protected_args, 9 drops it
+            warnings.simplefilter("ignore", DeprecationWarning)
+            args = [*group.protected_args, *group.args]
+        name, sub, rest = command.resolve_command(group, args)
+        try:
+            group = sub.make_context(name, rest, parent=group)
+        except click.BadParameter as exc:
+            if "does not exist" not in str(exc):
+                raise
+            return
+        command = sub
+
+
+def test_the_command_parser_catches_a_removed_option():
+    import click
+
+    with pytest.raises(click.UsageError):
+        parse_command(["simulate", "--pair", "II", "--center-distance", "65.6"])
+    with pytest.raises(click.UsageError):
+        parse_command(["identify", "FILE.h5", "--likelihood", "magic"])
+    parse_command(["campaign", "camp/manifest.csv", "-o", "results/", "--quick"])
+
+
+@pytest.mark.parametrize("page", COMMAND_PAGES, ids=lambda p: p.parent.name + "/" + p.name)
+def test_every_documented_command_parses(page):
+    import shlex
+
+    commands = documented_commands(page.read_text(encoding="utf-8"))
+    failed = []
+    for command in commands:
+        try:
+            parse_command(shlex.split(command)[1:])
+        except Exception as exc:  # every failure is reported with its command
+            failed.append(f"{command}\n    {type(exc).__name__}: {exc}")
+    assert not failed, "\n".join(failed)

@@ -97,6 +97,9 @@ def test_platform_info_names_the_cpu_model():
     assert rp.cpu_model(arm) == "BCM2835"  # some ARM kernels, after every processor's block
     info = rp.platform_info()
     assert info["cpu"] == rp.cpu_model() and isinstance(info["cpu"], str)
+    from importlib.metadata import version
+
+    assert info["rattlefit"] == version("rattlefit")  # the installed distribution's
     if os.path.exists("/proc/cpuinfo"):
         with open("/proc/cpuinfo") as f:
             vendor = next((ln.split(":")[1].strip() for ln in f if ln.startswith("vendor_id")), "")

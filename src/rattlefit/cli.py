@@ -889,7 +889,11 @@ def campaign() -> None:
     "other recordings.",
 )
 @click.option("--diagnose", "run_diagnose", is_flag=True, help="Also diagnose every unit.")
-@click.option("--effects", help="Comma-separated effects diagnose tries  [default: all]")
+@click.option(
+    "--effects",
+    help="Comma-separated effects diagnose tries  [default: diagnose's: every effect but "
+    "pitch_point_friction]",
+)
 @click.option(
     "--sample-steps",
     type=click.IntRange(min=0),

@@ -107,11 +107,15 @@ def cpu_model(cpuinfo: str | None = None) -> str:
 
 
 def platform_info() -> dict:
-    """What a seeded result depends on besides its inputs: JAX version, backend, device
-    count, machine architecture, the CPU instruction-set cap and the CPU model."""
+    """What a seeded result depends on besides its inputs: rattlefit's and JAX's versions,
+    the backend, the device count, the machine architecture, the CPU instruction-set cap and
+    the CPU model. Every JSON output records it under ``platform``."""
     import jax
 
+    from .version import __version__
+
     return {
+        "rattlefit": __version__,
         "jax": jax.__version__,
         "backend": jax.default_backend(),
         "devices": len(jax.local_devices()),
