@@ -4,7 +4,8 @@ A result file records the ``command`` it was made with. The files that command r
 scripts (``python X.py``, ``python -m module``, ``python -m pytest tests/…``, ``rattlefit …``,
 ``jupyter nbconvert … X.ipynb``, ``.ci/run``), every repository module those scripts import,
 directly or through others (found by reading their ``import`` statements, those inside
-functions included, and ``importlib.import_module("…")`` with a literal name), the
+functions included, ``importlib.import_module("…")`` with a literal name, and a package's
+table of names it imports on first use, ``_LAZY = {"name": ".module", …}``), the
 repository's files named on the command line (a bundled recording, a notebook), and
 ``constraints.txt`` (the versions of what they import from outside). Nothing is declared by
 hand, so nothing can be forgotten.
@@ -168,6 +169,11 @@ def imported_names(path: Path, root: Path = ROOT) -> frozenset[str]:
         elif isinstance(node, ast.ImportFrom):
             base = _absolute(node, package)
             names |= {base} | {f"{base}.{a.name}" for a in node.names if a.name != "*"}
+        elif isinstance(node, ast.Assign) and any(
+            getattr(t, "id", "") == "_LAZY" for t in node.targets
+        ):
+            names |= {_relative(v.value, path, root) for v in getattr(node.value, "values", [])
+                      if isinstance(v, ast.Constant) and isinstance(v.value, str)}  # fmt: skip
         elif (
             isinstance(node, ast.Call)
             and getattr(node.func, "attr", getattr(node.func, "id", "")) == "import_module"
@@ -179,6 +185,15 @@ def imported_names(path: Path, root: Path = ROOT) -> frozenset[str]:
     return frozenset(
         ".".join(n.split(".")[: k + 1]) for n in names if n for k in range(n.count(".") + 1)
     )
+
+
+def _relative(module: str, path: Path, root: Path) -> str:
+    """The absolute dotted name of ``module`` (".x" relative to the package of ``path``, an
+    ``__init__.py``)."""
+    if not module.startswith("."):
+        return module
+    package = [*_package(path, root)]
+    return ".".join([*package, module.lstrip(".")])
 
 
 def _source(path: Path) -> str:

@@ -16,6 +16,7 @@ import sys
 import time
 from pathlib import Path
 
+import rattlefit.cli  # noqa: F401 - what --help and --version run (and this result measures)
 from rattlefit.testing.results import provenance, write_result
 
 RATTLEFIT = str(Path(sys.executable).with_name("rattlefit"))

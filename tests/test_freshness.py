@@ -66,21 +66,27 @@ def test_what_forward_measures_is_derived_from_its_imports():
         "constraints.txt",
     }
     assert wanted <= paths, wanted - paths
+    # what the package's lazy names reach counts too: a script using rattlefit.identify
+    assert "src/rattlefit/inference/identify.py" in measured.measured_paths(
+        "python benchmarks/startup.py"
+    ).paths
     assert not {p for p in paths if p.startswith(("tests/", "studies/", "notebooks/"))}
     gone = measured.measured_paths("python benchmarks/coverage.py --seed 0")
     assert gone.missing == ("benchmarks/coverage.py",)
 
 
-def test_an_import_inside_a_function_is_followed(tmp_path):
+def test_an_import_inside_a_function_and_a_lazy_name_are_followed(tmp_path):
     measured, _ = _modules()
     (tmp_path / "src" / "pkg").mkdir(parents=True)
-    (tmp_path / "src" / "pkg" / "__init__.py").write_text("")
+    (tmp_path / "src" / "pkg" / "__init__.py").write_text('_LAZY = {"Y": ".lazy"}\n')
     (tmp_path / "src" / "pkg" / "late.py").write_text("X = 1\n")
+    (tmp_path / "src" / "pkg" / "lazy.py").write_text("Y = 1\n")
     (tmp_path / "src" / "pkg" / "never.py").write_text("X = 2\n")
     (tmp_path / "helper.py").write_text("def f():\n    from pkg import late\n    return late\n")
     (tmp_path / "run.py").write_text("import helper\n")
     found = measured.closure([tmp_path / "run.py"], tmp_path)
-    assert found == ["helper.py", "run.py", "src/pkg/__init__.py", "src/pkg/late.py"]
+    want = ["helper.py", "run.py", "src/pkg/__init__.py", "src/pkg/late.py", "src/pkg/lazy.py"]
+    assert found == want
 
 
 def test_a_result_goes_stale_when_what_it_imports_changes(clone):
