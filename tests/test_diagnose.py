@@ -204,12 +204,16 @@ def test_baseline_refit_starts_from_the_identification_and_the_free_alternatives
 
 
 def test_baseline_warnings_flag_an_unconverged_or_far_identification():
-    assert baseline_warnings(True, 100.0, 60.0) == []
-    (w,) = baseline_warnings(False, 100.0, 90.0)
-    assert "step limit" in w and "--quick" in w
-    (w,) = baseline_warnings(True, 1440.0, 300.0)
+    quick, full = rf.FitOptions.quick().to_dict(), rf.FitOptions().to_dict()
+    assert baseline_warnings(True, 100.0, 60.0, quick) == []
+    (w,) = baseline_warnings(False, 100.0, 90.0, quick)
+    assert "step limit" in w and "without --quick" in w
+    # worded for what was run: a full fit is not told to run without --quick
+    (w,) = baseline_warnings(False, 100.0, 90.0, full)
+    assert "--quick" not in w and f"all {full['max_iterations']} iterations" in w
+    (w,) = baseline_warnings(True, 1440.0, 300.0, full)
     assert "1440.0" in w and "300.0" in w
-    assert len(baseline_warnings(False, 1440.0, 300.0)) == 2
+    assert len(baseline_warnings(False, 1440.0, 300.0, full)) == 2
 
 
 def test_gap_closed_is_the_share_of_the_excess_misfit():

@@ -67,9 +67,10 @@ def test_what_forward_measures_is_derived_from_its_imports():
     }
     assert wanted <= paths, wanted - paths
     # what the package's lazy names reach counts too: a script using rattlefit.identify
-    assert "src/rattlefit/inference/identify.py" in measured.measured_paths(
-        "python benchmarks/startup.py"
-    ).paths
+    assert (
+        "src/rattlefit/inference/identify.py"
+        in measured.measured_paths("python benchmarks/startup.py").paths
+    )
     assert not {p for p in paths if p.startswith(("tests/", "studies/", "notebooks/"))}
     gone = measured.measured_paths("python benchmarks/coverage.py --seed 0")
     assert gone.missing == ("benchmarks/coverage.py",)

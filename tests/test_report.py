@@ -610,3 +610,65 @@ def test_a_result_written_with_the_old_film_name_is_read_with_the_new_one():
         "film_half_length",
     ]
     assert list(old["fit"]["profiles"]) == ["film_half_length[boundary]"]
+
+
+def test_the_profile_figure_shades_the_printed_interval_on_a_non_negative_cost_axis():
+    # the shapes a real fit gives: a drag-torque profile with a point 17.6 below the optimum
+    # and an upper bound only (its lower end reads 0), and a film whose interval is two-sided
+    from rattlefit.report.plots import profile_figure
+
+    threshold = 14.7
+    curves = {
+        "drag_torque": [[0.004, 3.0], [0.0145, 0.0], [0.03, -17.6], [0.0577, 14.0], [0.2, 80.0]],
+        "film_half_length": [[2e-5, 30.0], [5e-5, 9.0], [7.86e-5, 0.0], [1.2e-4, 5.0],
+                             [1.6e-4, 15.0], [3e-4, 60.0]],
+    }  # fmt: skip
+    parameters = {
+        "drag_torque": {"estimate": 0.0145, "lower": 0.0, "upper": 0.05775, "unit": "N m"},
+        "film_half_length": {"estimate": 7.86e-5, "lower": 1.951e-5, "upper": 1.559e-4,
+                             "unit": "m"},
+    }  # fmt: skip
+    fig = profile_figure(curves, threshold, parameters)
+    for ax, name in zip(fig.axes, curves, strict=True):
+        p, pts = parameters[name], np.asarray(curves[name])
+        mult = 1e3 if name == "film_half_length" else 1.0  # the table's display units
+        (line,) = [x for x in ax.get_lines() if x.get_label() == "profile"]
+        assert np.min(line.get_ydata()) >= 0 and ax.get_ylim()[0] >= 0
+        # the threshold keeps its place relative to the profile: shifted as the points are
+        (dashed,) = [x for x in ax.get_lines() if x.get_label() == "95 % threshold"]
+        shift = line.get_ydata()[0] - pts[0, 1]
+        assert dashed.get_ydata()[0] == pytest.approx(threshold + shift)
+        # the shaded region is the printed interval (from the axis' edge where it reads 0)
+        (span,) = ax.patches
+        x0, x1 = span.get_x(), span.get_x() + span.get_width()
+        assert x1 == pytest.approx(p["upper"] * mult)
+        assert x0 == pytest.approx(max(p["lower"] * mult, ax.get_xlim()[0]))
+        # the value axis fits what is drawn: within a factor 2 of the points and the ends
+        lo, hi = ax.get_xlim()
+        assert lo >= 0.5 * pts[:, 0].min() * mult and hi <= 2 * pts[:, 0].max() * mult
+    assert "below the optimum" in fig.axes[0].get_title()
+    assert fig.axes[1].get_title() == ""
+
+
+def test_an_unconverged_fit_is_told_what_to_run_for_what_was_run():
+    # the HTML names the next step for the fit that was run: a quick fit is told to run a full
+    # one, a full fit is not told to drop --quick
+    from rattlefit.io.recording import read_recording
+    from rattlefit.report import html_report
+
+    path = "data/pairII_boundary_65.6_20pct_16Hz.h5"
+    rec = read_recording(path)
+    for options, wanted, unwanted in (
+        (FitOptions.quick(), "without --quick", "iterations of each search"),
+        (FitOptions(), "iterations of each search", "--quick"),
+    ):
+        bands = np.full((1, 5), -9.0)
+        res = dataclasses.replace(
+            _result(30.0, 28, recordings=[path], success=False),
+            state=FittedState(options, np.zeros(3), np.eye(3)),
+            spectra=Spectra(bands, bands, 0.1 + 0 * bands, np.geomspace(10.0, 1e3, 5)),
+        )
+        doc = res.to_json()
+        html = html_report(fit=doc, recordings=[rec])
+        (note,) = [p for p in html.split("<p") if "did not converge" in p]
+        assert wanted in note and unwanted not in note

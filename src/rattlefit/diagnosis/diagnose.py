@@ -515,7 +515,9 @@ def base_model(trial: Trial, baseline: FitResult, say):
     )
     z_base, cost_identified, refit_cost = refit_without_effects(trial, z_absent, say)
     chi2_without, _ = final_chi2(trial, z_base)
-    warnings = baseline_warnings(baseline.statistics.success, cost_identified, refit_cost)
+    warnings = baseline_warnings(
+        baseline.statistics.success, cost_identified, refit_cost, baseline.state.options.to_dict()
+    )
     for w in warnings:
         say("  warning: " + w)
     return z_base, chi2_without, (cost_identified, refit_cost), tuple(warnings)

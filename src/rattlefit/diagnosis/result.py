@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 from scipy import stats
 
+from ..inference.options import unfinished_fit_advice
 from ..inference.result import FitResult
 from .cycle_gap import CycleGap
 from .evidence import Finding
@@ -138,17 +139,21 @@ class Diagnosis:
         }
 
 
-def baseline_warnings(converged: bool, cost_identified: float, cost_refit: float) -> list[str]:
+def baseline_warnings(
+    converged: bool, cost_identified: float, cost_refit: float, options: dict
+) -> list[str]:
     """Why a verdict against this identification may mislead: it stopped at its step limit,
     or re-fitting a and T_b without effects lowered its cost below :data:`REFIT_WARN_RATIO`
     of it. An effect tried against an unfinished identification can be credited with what
-    finishing the fit of the model without effects would gain."""
+    finishing the fit of the model without effects would gain. ``options``: the
+    identification's (:meth:`~rattlefit.inference.options.FitOptions.to_dict`), for the advice."""
     out = []
     if not converged:
         out.append(
             "the identification stopped at its step limit, so the model without effects may "
-            "fit better than it does here and an effect may be credited with that; a full "
-            "identification (without --quick) is the safer start."
+            "fit better than it does here and an effect may be credited with that; "
+            + unfinished_fit_advice(options)
+            + "."
         )
     if cost_refit < REFIT_WARN_RATIO * cost_identified:
         out.append(

@@ -317,6 +317,28 @@ class FitOptions:
         return cls(priors=priors, **doc)
 
 
+def preset_of(options: dict) -> str:
+    """Which preset ``options`` (:meth:`FitOptions.to_dict`, or a fit JSON's ``options``)
+    were made with: ``"quick"`` (:data:`QUICK`), ``"optimum_only"`` (:data:`OPTIMUM_ONLY`) or
+    ``"full"`` (the defaults, or any other choice)."""
+    for name, preset in (("quick", QUICK), ("optimum_only", OPTIMUM_ONLY)):
+        if all(options.get(k) == v for k, v in preset.items()):
+            return name
+    return "full"
+
+
+def unfinished_fit_advice(options: dict) -> str:
+    """What to run when a fit made with ``options`` (as :func:`preset_of` reads them) stopped
+    at its step limit: a full fit after a quick one, else more iterations or another seed."""
+    if preset_of(options) == "quick":
+        return "a full identification (without --quick) is safer"
+    steps = options.get("max_iterations", "its")
+    return (
+        f"the fit used all {steps} iterations of each search; more (FitOptions(max_iterations=…)) "
+        "or another --seed may finish it"
+    )
+
+
 #: Every option's name, in the order result JSON and chain files use.
 OPTION_NAMES: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(FitOptions))
 

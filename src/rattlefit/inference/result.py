@@ -368,6 +368,16 @@ def estimate(spec: ParameterSpec, z: float, lo_z: float, hi_z: float) -> Paramet
     return result(lower, upper, False, "interval")
 
 
+#: The fitted coordinates the results report under another quantity's name: the viscosity
+#: factor is reported as the viscosity (Pa s, at the first recording's temperature).
+REPORTED_AS = {"viscosity_scale": "viscosity"}
+
+
+def reported_name(name: str) -> str:
+    """The name a fitted coordinate ``name`` is reported under (tables, JSON, plots)."""
+    return REPORTED_AS.get(name, name)
+
+
 def estimates_of(
     problem: Problem, z, z_lo, z_hi, lubrications: Sequence[str] = ()
 ) -> dict[str, ParameterEstimate]:
@@ -378,8 +388,8 @@ def estimates_of(
     found = {s.name: estimate(s, z[i], z_lo[i], z_hi[i]) for i, s in enumerate(problem.specs)}
     vs = found.pop("viscosity_scale")
     mu0 = float(np.asarray(problem.viscosities)[0])
-    found["viscosity"] = ParameterEstimate(
-        "viscosity",
+    found[reported_name("viscosity_scale")] = ParameterEstimate(
+        reported_name("viscosity_scale"),
         "Pa s",
         vs.estimate * mu0,
         vs.lower * mu0,

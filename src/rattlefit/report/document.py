@@ -8,6 +8,7 @@ from html import escape
 from pathlib import Path
 
 from ..diagnosis.result import MISSED_Z
+from ..inference.options import unfinished_fit_advice
 from ..io.recording import Recording
 from ..util import atomic_write
 from . import figures
@@ -87,7 +88,7 @@ def _fit_notes(f: dict) -> list[str]:
     if f.get("success") is False:
         out.append(
             f"The search did not converge ({escape(str(f.get('message', '')))}): the optimum "
-            "and the intervals are rough; a full identification (without --quick) is safer."
+            f"and the intervals are rough; {escape(unfinished_fit_advice(f.get('options', {})))}."
         )
     for path, share in zip(
         f["recordings"], f.get("regime_share_per_recording") or [], strict=False

@@ -8,8 +8,15 @@ import warnings
 
 import numpy as np
 
-from ..quantities import axis_label, display
-from .plots import DPI, SPREAD_LABEL, centred, draw_drive_cycle, draw_flanks, pyplot
+from .plots import (
+    DPI,
+    SPREAD_LABEL,
+    centred,
+    draw_drive_cycle,
+    draw_flanks,
+    profile_figure,
+    pyplot,
+)
 
 #: Seconds of the recording's Δθ* shown as a time history.
 TIME_HISTORY_S = 0.3
@@ -71,42 +78,6 @@ def time_history(time_s, relative_motion_rad, backlash_rad: float, title: str) -
 def profiles(curves: dict, threshold: float | None, parameters: dict) -> bytes:
     """:func:`profile_figure` as PNG."""
     return png(profile_figure(curves, threshold, parameters))
-
-
-def profile_figure(curves: dict, threshold: float | None, parameters: dict):
-    """Each free parameter's profile (Δcost above the optimum against its value in display
-    units): every point, the estimate as a vertical line, the threshold that sets the 95 %
-    interval as a dashed line and the interval shaded. Δcost is drawn linear up to the
-    threshold and logarithmic beyond, so that far points stay on the axes without squashing
-    the interval. ``curves`` is the fit JSON's ``fit.profiles``."""
-    from matplotlib.ticker import NullFormatter
-
-    names = list(curves)
-    fig, axes = pyplot().subplots(1, len(names), figsize=(4.2 * len(names), 3.2), squeeze=False)
-    for ax, name in zip(axes[0], names, strict=True):
-        pts = np.asarray(curves[name], dtype=float).reshape(-1, 2)
-        p = parameters.get(name, {})
-        unit = p.get("unit", "1")
-        mult = display(name, unit)[0]
-        ax.plot(pts[:, 0] * mult, pts[:, 1], "o-", ms=3, color="C0", label="profile")
-        if threshold is not None:
-            ax.axhline(threshold, color="C3", ls="--", lw=0.9, label="95 % threshold")
-            ax.set_yscale("symlog", linthresh=threshold, linscale=2)
-        if p:
-            ax.axvspan(p["lower"] * mult, p["upper"] * mult, color="C2", alpha=0.12, lw=0)
-        if p.get("estimate") is not None:
-            ax.axvline(p["estimate"] * mult, color="k", lw=0.9, label="estimate")
-        x = pts[:, 0] * mult
-        if len(x) and x.min() > 0 and x.max() > 3 * x.min():
-            ax.set_xscale("log")
-            ax.xaxis.set_minor_formatter(NullFormatter())
-        ax.set_xlabel(axis_label(name, unit))
-        ax.set_ylabel("Δcost above the optimum")
-    fig.suptitle("profiles (shaded: the 95 % interval)", fontsize=10)
-    fig.tight_layout()
-    handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=4, fontsize=8)
-    return fig
 
 
 def trace(idata) -> bytes:

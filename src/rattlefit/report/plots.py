@@ -18,7 +18,7 @@ from ..features.orders import (
 )
 from ..features.spectra import welch_psd
 from ..inference.posterior import Posterior
-from ..inference.result import FitResult
+from ..inference.result import FitResult, reported_name
 from ..io.recording import Recording
 from ..quantities import axis_label, display
 from ..rig import setup
@@ -67,7 +67,8 @@ def plot_fit(
     directory: str | Path,
     realisations: Sequence[np.ndarray],
 ) -> list[Path]:
-    """Measured vs fitted spectra and time histories, and the parameter correlations.
+    """Measured vs fitted spectra and time histories, the parameter correlations and the
+    profiles (``profiles.png``, :func:`profile_figure`, as in the HTML report).
 
     ``realisations``: one simulated Δθ* (rad) at the fitted parameters per recording
     (:func:`rattlefit.inference.realisation.fitted_realisations`), drawn beside the
@@ -124,9 +125,10 @@ def plot_fit(
         )
         ax2.set_xlabel("time (s)")
         ax2.set_ylabel("Δθ* about the middle of its range (mrad)")
+        fig.subplots_adjust(hspace=0.45)  # room for the lower legend under the upper axis
         ax2.legend(fontsize=8, loc="lower left", bbox_to_anchor=(0, 1.0), ncol=2, frameon=False)
         out.append(_save(fig, directory / f"fit_{k}_{Path(rec.path or 'recording').stem}.png"))
-    names = result.estimates.names
+    names = [reported_name(n) for n in result.estimates.names]
     fig, ax = pyplot().subplots(figsize=(1.0 + 0.6 * len(names), 0.8 + 0.6 * len(names)))
     im = ax.imshow(result.estimates.correlation, vmin=-1, vmax=1, cmap="RdBu_r")
     ax.set_xticks(range(len(names)), names, rotation=45, ha="right")
@@ -144,7 +146,76 @@ def plot_fit(
     fig.colorbar(im, ax=ax, label="correlation")
     ax.set_title("parameter correlations (Laplace)")
     out.append(_save(fig, directory / "correlation.png"))
+    doc = result.to_json()
+    if doc["fit"].get("profiles"):
+        threshold = doc["fit"].get("profile", {}).get("threshold")
+        fig = profile_figure(doc["fit"]["profiles"], threshold, doc["parameters"])
+        out.append(_save(fig, directory / "profiles.png"))
     return out
+
+
+def profile_figure(curves: dict, threshold: float | None, parameters: dict):
+    """Each free parameter's profile against its value in display units: every point's cost
+    above the lowest cost found (the optimum's, unless a profile point lies below it, which the
+    panel then says), the estimate as a vertical line, the threshold that sets the 95 % interval
+    (taken from the optimum, so shifted with the axis) dashed, and the interval the table
+    prints shaded (from the axis' edge where its lower end reads 0). The cost is drawn linear up
+    to the threshold and logarithmic beyond; the value axis spans the points, the estimate and
+    the interval's finite ends. ``curves`` is the fit JSON's ``fit.profiles``, ``parameters``
+    its ``parameters``."""
+    names = list(curves)
+    fig, axes = pyplot().subplots(1, len(names), figsize=(4.2 * len(names), 3.4), squeeze=False)
+    for ax, name in zip(axes[0], names, strict=True):
+        profile_panel(ax, name, np.asarray(curves[name], dtype=float).reshape(-1, 2),
+                      threshold, parameters.get(name, {}))  # fmt: skip
+    fig.suptitle("profiles (shaded: the 95 % interval the table prints)", fontsize=10)
+    fig.tight_layout()
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=4, fontsize=8)
+    return fig
+
+
+def value_limits(values: np.ndarray, log: bool) -> tuple[float, float]:
+    """Axis limits that hold ``values`` with a margin of 5 % (of the log span when ``log``)."""
+    lo, hi = float(values.min()), float(values.max())
+    if log:
+        pad = (hi / lo) ** 0.05
+        return lo / pad, hi * pad
+    pad = 0.05 * (hi - lo) or 0.05 * abs(lo) or 1.0
+    return lo - pad, hi + pad
+
+
+def profile_panel(ax, name: str, pts: np.ndarray, threshold: float | None, p: dict) -> None:
+    """One parameter's panel of :func:`profile_figure`: ``pts`` (n, 2) value and Δcost above
+    the optimum, ``p`` its table row (``estimate``, ``lower``, ``upper``, ``unit``)."""
+    from matplotlib.ticker import NullFormatter
+
+    unit = p.get("unit", "1")
+    mult = display(name, unit)[0]
+    lowest = min(0.0, float(pts[:, 1].min())) if len(pts) else 0.0
+    x, y = pts[:, 0] * mult, pts[:, 1] - lowest
+    ax.plot(x, y, "o-", ms=3, color="C0", label="profile")
+    if threshold is not None:
+        ax.axhline(threshold - lowest, color="C3", ls="--", lw=0.9, label="95 % threshold")
+        ax.set_yscale("symlog", linthresh=threshold - lowest, linscale=2)
+    ax.set_ylim(bottom=0.0)
+    ends = [v * mult for v in (p.get("lower"), p.get("upper"), p.get("estimate")) if v]
+    shown = np.concatenate([x, ends])
+    logx = bool(len(shown)) and shown.min() > 0 and shown.max() > 3 * shown.min()
+    if len(shown):
+        ax.set_xlim(*value_limits(shown, logx))
+    if logx:
+        ax.set_xscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())
+    if p.get("upper") is not None:
+        left = max(p.get("lower") or 0.0, 0.0) * mult
+        ax.axvspan(max(left, ax.get_xlim()[0]), p["upper"] * mult, color="C2", alpha=0.12, lw=0)
+    if p.get("estimate") is not None:
+        ax.axvline(p["estimate"] * mult, color="k", lw=0.9, label="estimate")
+    ax.set_xlabel(axis_label(name, unit))
+    ax.set_ylabel("cost above the lowest point found")
+    if lowest < 0:
+        ax.set_title(f"a point lies {-lowest:.3g} below the optimum", fontsize=8)
 
 
 def plot_posterior(
