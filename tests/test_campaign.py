@@ -341,3 +341,37 @@ def test_nothing_below_the_campaign_imports_it_and_it_imports_dask_only_when_run
             names = [a.name for n in top if isinstance(n, ast.Import) for a in n.names]
             names += [n.module or "" for n in top if isinstance(n, ast.ImportFrom)]
             assert not [n for n in names if n.split(".")[0] in ("dask", "distributed")], name
+
+
+def test_the_report_table_marks_a_poor_or_unfinished_fit_and_the_csv_prints_no_float_noise(
+    tmp_path,
+):
+    from rattlefit.campaign.report import estimates_table
+    from rattlefit.campaign.table import COLUMNS, write_table
+
+    def row(parameter, estimate, lower, upper, bound, **fit):
+        return {
+            "fit": "u1", "joint": False, "key": "k", "recording": "r.h5",
+            "recording_name": "r", "recording_sha256": "0", "pair": "II",
+            "center_distance_mm": 65.0 + 0.4000000000000002, "lubrication": "boundary",
+            "oil_temperature_c": 20.0, "mean_speed_rad_s": 52.36, "fluctuation_pct": 20.0,
+            "frequency_hz": 16.0, "duration_s": 3.0, "parameter": parameter,
+            "fit_parameter": parameter, "unit": "N m" if parameter == "drag_torque" else "m",
+            "estimate": estimate, "lower": lower, "upper": upper, "bound": bound,
+            "identified": False, "truth": None, "chi2": 71.0, "dof": 28, "p_value": 1e-5,
+            "seed": 0, "rattlefit_version": "0", **fit,
+        }  # fmt: skip
+
+    rows = [
+        row("drag_torque", 0.07616, 0.0, 0.2325, "upper", poor_fit=True, converged=False),
+        row("film_half_length", 8e-5, 5e-5, 1.1e-4, "interval", poor_fit=True, converged=False),
+    ]
+    html = estimates_table(rows)
+    assert "0.07616 (≤ 0.2325)" in html  # not "0.07616 ≤ 0.2325", a comparison
+    assert "71.0/28 (poor fit, not converged)" in html
+    good = [dict(r, poor_fit=False, converged=True) for r in rows]
+    assert "71.0/28</td>" in estimates_table(good)
+    _, csv = write_table(tmp_path, rows)
+    text = csv.read_text()
+    assert "65.4," in text and "65.40000000000002" not in text
+    assert text.splitlines()[0].split(",") == list(COLUMNS)

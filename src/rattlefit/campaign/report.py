@@ -190,7 +190,7 @@ def table_html(head: list[str], body: list[list[str]]) -> str:
 
 def estimates_table(rows: list[dict]) -> str:
     """Each recording's target parameters: estimate and 95 % interval in display units, a
-    ``*`` where identified, χ²/dof of its fit."""
+    ``*`` where identified, χ²/dof of its fit marked as a poor fit or unconverged."""
     by_rec: dict[str, dict] = {}
     for r in rows:
         by_rec.setdefault(r["recording"], {"row": r})[r["parameter"]] = r
@@ -213,10 +213,19 @@ def estimates_table(rows: list[dict]) -> str:
                 cells.append("—")
                 continue
             estimate, interval = estimate_cells(n, {**p, "bound": p["bound"] or None})
+            if not interval.startswith("["):
+                interval = f"({interval})"  # "0.08 (≤ 0.2)", not a comparison "0.08 ≤ 0.2"
             cells.append(f"{estimate} {interval}" + (" *" if p["identified"] else ""))
-        cells.append(f"{r['chi2']:.1f}/{r['dof']}")
+        cells.append(fit_cell(r))
         body.append(cells)
     return table_html(head, body)
+
+
+def fit_cell(row: dict) -> str:
+    """A fit's χ²/dof, marked as a poor fit and as unconverged where it is."""
+    marks = [m for m, on in (("poor fit", row["poor_fit"]),
+                             ("not converged", not row.get("converged", True))) if on]  # fmt: skip
+    return f"{row['chi2']:.1f}/{row['dof']}" + (f" ({', '.join(marks)})" if marks else "")
 
 
 def diagnosis_table(diagnoses: list[dict]) -> str:

@@ -15,7 +15,8 @@ JSON):
   ``backlash[1]``), ``unit``, ``estimate``, ``lower``, ``upper`` (the 95 % interval; the
   viscosity at the recording's own oil temperature), ``bound``, ``identified``, ``truth`` (a
   synthetic recording's, else empty);
-* the fit: ``chi2``, ``dof``, ``p_value``, ``poor_fit``, ``seed``, ``rattlefit_version``;
+* the fit: ``chi2``, ``dof``, ``p_value``, ``poor_fit``, ``converged`` (False where a search
+  stopped at its step limit), ``seed``, ``rattlefit_version``;
 * when asked for: ``posterior_median``, ``posterior_lower``, ``posterior_upper`` (the 95 %
   credible interval) and ``diagnosis`` (the verdict).
 """
@@ -61,6 +62,7 @@ COLUMNS = (
     "dof",
     "p_value",
     "poor_fit",
+    "converged",
     "seed",
     "rattlefit_version",
     "posterior_median",
@@ -116,6 +118,7 @@ def unit_rows(unit: Unit, doc: dict, recordings: list[dict], *, version: str) ->
                     "dof": fit["dof"],
                     "p_value": fit["p_value"],
                     "poor_fit": bool(fit["poor_fit"]),
+                    "converged": bool(fit.get("success", True)),
                     "seed": fit["seed"],
                     "rattlefit_version": version,
                     "scale": scale,
@@ -164,12 +167,15 @@ def results_frame(rows: list[dict]):
 
 
 def write_table(directory: str | Path, rows: list[dict]) -> tuple[Path, Path]:
-    """Write the rows as ``results.parquet`` and ``results.csv`` in ``directory``, each
-    atomically; returns both paths."""
+    """Write the rows as ``results.parquet`` (full precision) and ``results.csv`` (12
+    significant digits) in ``directory``, each atomically; returns both paths."""
     frame = results_frame(rows)
     directory = Path(directory)
     parquet = atomic_write(directory / PARQUET, lambda tmp: frame.to_parquet(tmp, index=False))
-    csv = atomic_write(directory / CSV, lambda tmp: frame.to_csv(tmp, index=False))
+    # 12 significant digits: a value's float noise (65.40000000000002) is not printed
+    csv = atomic_write(
+        directory / CSV, lambda tmp: frame.to_csv(tmp, index=False, float_format="%.12g")
+    )
     return parquet, csv
 
 

@@ -30,7 +30,7 @@ h1 { font-size: 1.6em; margin-bottom: 0.2em; } h2 { border-bottom: 1px solid #cc
      padding-bottom: 0.2em; margin-top: 1.8em; } h3 { margin-bottom: 0.3em; }
 table { border-collapse: collapse; margin: 0.6em 0; font-size: 0.92em; }
 th, td { border: 1px solid #d0d0d0; padding: 0.3em 0.55em; text-align: left;
-         vertical-align: top; }
+         vertical-align: top; overflow-wrap: anywhere; }
 th { background: #f2f2f2; } td.num { font-variant-numeric: tabular-nums;
      white-space: nowrap; }
 tr.identified td.status { color: #0a6b2b; font-weight: 600; }
