@@ -672,3 +672,22 @@ def test_an_unconverged_fit_is_told_what_to_run_for_what_was_run():
         html = html_report(fit=doc, recordings=[rec])
         (note,) = [p for p in html.split("<p") if "did not converge" in p]
         assert wanted in note and unwanted not in note
+
+
+def test_the_fit_csv_holds_the_json_parameters_row_by_row(tmp_path):
+    import csv
+
+    from rattlefit.report.export import FIT_COLUMNS, write_fit_csv
+
+    doc = _result(71.0, 28, recordings=["data/x.h5"], success=False).to_json()
+    path = write_fit_csv(tmp_path / "fit.csv", doc)
+    rows = list(csv.DictReader(path.open()))
+    assert list(rows[0]) == list(FIT_COLUMNS)
+    assert [r["parameter"] for r in rows] == list(doc["parameters"])
+    for r in rows:
+        p = doc["parameters"][r["parameter"]]
+        assert float(r["estimate"]) == pytest.approx(p["estimate"], rel=1e-11)
+        assert float(r["upper"]) == pytest.approx(p["upper"], rel=1e-11)
+        assert r["unit"] == p["unit"] and r["identified"] == str(p["identified"])
+        assert (r["converged"], r["chi2"], r["recordings"]) == ("False", "71", "x.h5")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fit.csv"]  # nothing left behind

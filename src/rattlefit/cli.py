@@ -438,6 +438,12 @@ def simulate(**o) -> None:
 )
 @_report_option("the fit")
 @_prior_option
+@click.option(
+    "--csv",
+    "csv_file",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Also write the parameter table as CSV here (a row per parameter, SI units).",
+)
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
 @_clean_errors
 def identify(
@@ -455,6 +461,7 @@ def identify(
     suggest,
     report_file,
     priors,
+    csv_file,
     quiet,
 ) -> None:
     """Fit a, T_b and the viscosity to one recording, or jointly to several of one pair
@@ -495,6 +502,10 @@ def identify(
         lambda d: plot_fit(result, recordings, d, fitted_realisations(result, recordings)),
     )
     _write_report(report_file, fit=doc, recordings=recordings)
+    if csv_file is not None:
+        from .report.export import write_fit_csv
+
+        click.echo(f"wrote {write_fit_csv(csv_file, doc)}", err=True)
 
 
 @main.command()
