@@ -332,3 +332,17 @@ def test_help_and_version_start_without_jax_or_scipy():
     )
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
     assert out.stdout.split() == ["0", "True"], out.stdout + out.stderr
+
+
+def test_a_file_that_cannot_be_written_is_one_line_not_a_traceback(tmp_path):
+    # an output folder under a file: the OS refuses it, and the command says so in one line
+    (tmp_path / "taken").write_text("a file, not a folder")
+    result = CliRunner().invoke(
+        main,
+        ["campaign", "simulate", "-o", str(tmp_path / "taken" / "camp"), "--pair", "II",
+         "--fluctuations-pct", "20", "--frequencies", "16", "--center-distances-mm", "65.0"],
+    )  # fmt: skip
+    assert result.exit_code == 2, (result.output, result.exception)
+    lines = [x for x in result.output.splitlines() if x.startswith("rattlefit: error")]
+    assert len(lines) == 1 and "taken" in lines[0], result.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["taken"]

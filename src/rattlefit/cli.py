@@ -20,8 +20,8 @@ EXIT_INPUT = 2
 
 
 def _clean_errors(func):
-    """Run a command after :func:`_configure`, with every library error as one line on stderr
-    and exit status 2."""
+    """Run a command after :func:`_configure`, with every library error, and every file that
+    cannot be read or written, as one line on stderr and exit status 2."""
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
@@ -30,6 +30,10 @@ def _clean_errors(func):
             return func(*args, **kwargs)
         except RattlefitError as exc:
             click.echo(f"rattlefit: error: {exc}", err=True)
+            sys.exit(EXIT_INPUT)
+        except OSError as exc:  # a file that cannot be read or written: named, no traceback
+            where = f"{exc.filename}: " if exc.filename else ""
+            click.echo(f"rattlefit: error: {where}{exc.strerror or exc}", err=True)
             sys.exit(EXIT_INPUT)
 
     return wrapper
