@@ -405,11 +405,13 @@ print(json.dumps({k: [p.estimate, p.lower, p.upper] for k, p in res.estimates.pa
 """
 
 
-def test_the_same_seed_gives_the_same_learned_fit_on_1_2_and_4_devices_and_one_core(tmp_path):
+def test_the_same_seed_gives_the_same_learned_fit_on_1_and_2_devices_and_one_core(tmp_path):
     """XLA sums in another order on one thread than on several (rattlefit.likelihood.training),
     so one device on one core is a case of its own. The recording is one second of the
     bundled boundary recording's operating point and truth: the property is the layout's, and
-    a short recording keeps the three learnings within the test suite's time."""
+    a short recording keeps the two learnings within the test suite's time. (Four devices
+    hand out the same blocks as two, to more threads: two devices are the case that splits
+    them.)"""
     import json
     import subprocess
     import sys
@@ -423,7 +425,7 @@ def test_the_same_seed_gives_the_same_learned_fit_on_1_2_and_4_devices_and_one_c
     short, _ = rf.synthesize(g, rec.operating, params, oil=rec.oil, seed=3, duration=1.0)
     path = rf.write_recording(short, tmp_path / "boundary_1s.h5")
     runs = {}
-    for devices, cores in ((2, "all"), (1, "1"), (4, "all")):
+    for devices, cores in ((2, "all"), (1, "1")):
         proc = subprocess.run(
             [sys.executable, "-c", DEVICE_SCRIPT, str(devices), json.dumps(TINY), str(path), cores],
             capture_output=True,
