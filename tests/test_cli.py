@@ -171,7 +171,7 @@ def test_identify_bad_file_is_one_clean_error(tmp_path):
 @pytest.mark.parametrize(
     ("prior", "problem"),
     [
-        ("h_min=2e-6:0.1", "not a nuisance parameter"),
+        ("h_min=2e-6:0.1", "not a parameter that takes a prior"),
         ("min_film=2um", "expected NAME=CENTER:LOG_SD"),
         ("min_film=1000um:0.1", "outside the range"),
         ("min_film=2e-6:0.1", "must say so"),

@@ -34,7 +34,7 @@ from rattlefit.inference.least_squares import (
     lm_steps,
 )
 from rattlefit.inference.noise import noise_model
-from rattlefit.inference.parameters import ParameterSpec, nuisance_prior
+from rattlefit.inference.parameters import ParameterSpec, parameter_prior
 from rattlefit.inference.problem import build_problem
 from rattlefit.inference.profile import SCREEN_FACTOR, ProfileCosts
 from rattlefit.inference.result import IDENTIFIED_RATIO, estimate
@@ -631,7 +631,7 @@ def test_a_second_set_of_starts_spreads_the_nuisances_over_their_priors(mild_rec
         == 24
     )
     # a prior wider than the range (a caller's) spreads the starts only inside the range
-    wide = nuisance_prior("viscosity_scale", 1.0, 3.0)
+    wide = parameter_prior("viscosity_scale", 1.0, 3.0)
     problem = _problem([mild_recording[0]], FitOptions(priors={"viscosity_scale": wide}))
     i = [s.name for s in problem.specs].index("viscosity_scale")
     starts = starting_points(problem, None, np.random.default_rng(START_SEED), nuisance_starts=None)
@@ -852,15 +852,19 @@ def test_band_sigma_removes_the_dither_spread():
 
 
 def test_a_prior_under_a_wrong_name_is_refused_not_ignored():
-    spec = nuisance_prior("min_film", 2e-6, 0.1)
+    spec = parameter_prior("min_film", 2e-6, 0.1)
     assert (spec.center, spec.log_sd, spec.unit) == (2e-6, 0.1, "m")
     assert FitOptions(priors={"min_film": spec}).priors["min_film"] is spec
     with pytest.raises(rf.RattlefitError, match="unknown parameter 'h_min'"):
         FitOptions(priors={"h_min": spec})
     with pytest.raises(rf.RattlefitError, match="a ParameterSpec named 'viscosity_scale'"):
         FitOptions(priors={"viscosity_scale": spec})
-    with pytest.raises(rf.RattlefitError, match="not a nuisance parameter"):
-        nuisance_prior("film_half_length", 1e-4, 0.1)
+    with pytest.raises(rf.RattlefitError, match="not a parameter that takes a prior"):
+        parameter_prior("backlash", 1e-4, 0.1)
+    # a physical parameter keeps its role with a prior: profiled, its lower end reading 0
+    drag = parameter_prior("drag_torque", 0.025, 0.3)
+    assert (drag.role, drag.nuisance, drag.center) == ("physical", False, 0.025)
+    assert FitOptions(priors={"drag_torque": drag}).priors["drag_torque"] is drag
 
 
 def test_counts_of_the_profile_stage_are_checked_at_construction():

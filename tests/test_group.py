@@ -14,7 +14,7 @@ from scipy.integrate import quad
 import rattlefit as rf
 from rattlefit.inference.group import group_problem, group_value, to_group
 from rattlefit.inference.options import FitOptions
-from rattlefit.inference.parameters import nuisance_prior
+from rattlefit.inference.parameters import parameter_prior
 from rattlefit.inference.problem import problem_from
 from rattlefit.physics.model import (
     film_for_squeeze_momentum,
@@ -107,8 +107,8 @@ def test_with_the_nuisances_known_the_groups_interval_is_the_films_carried_throu
     # bisected); and its estimate is M at the optimum
     rec = rf.read_recording(BOUNDARY)
     priors = {
-        "min_film": nuisance_prior("min_film", 2e-6, 0.01),
-        "viscosity_scale": nuisance_prior("viscosity_scale", 1.0, 0.01),
+        "min_film": parameter_prior("min_film", 2e-6, 0.01),
+        "viscosity_scale": parameter_prior("viscosity_scale", 1.0, 0.01),
     }
     options = FitOptions.quick(
         seed=0, priors=priors, profile_bisections=4, profile_rounds=1, profile_roughness=False

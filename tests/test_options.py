@@ -13,7 +13,7 @@ import pytest
 
 import rattlefit as rf
 from rattlefit.inference.options import OPTION_NAMES, FitOptions
-from rattlefit.inference.parameters import nuisance_prior
+from rattlefit.inference.parameters import parameter_prior
 from rattlefit.inference.profile import stage as stage_module
 
 # the module, not the function that rattlefit.inference exports under the same name
@@ -34,7 +34,7 @@ def test_options_are_one_flat_frozen_form():
 
 
 def test_to_dict_is_flat_in_the_stored_order_and_from_dict_inverts_it():
-    spec = nuisance_prior("min_film", 2e-6, 0.1)
+    spec = parameter_prior("min_film", 2e-6, 0.1)
     options = FitOptions.quick(seed=3, priors={"min_film": spec})
     doc = options.to_dict()
     assert list(doc) == list(OPTION_NAMES)

@@ -83,6 +83,14 @@ def test_a_prior_from_the_command_line():
     # the range stays the default's
     (default,) = (s for s in default_specs([], {}) if s.name == "min_film")
     assert (spec.lower, spec.upper) == (default.lower, default.upper)
+    # the physical parameters: the film in mm (also per lubrication), the drag torque and the
+    # viscosity in their SI display units, named or not; each keeps its role
+    name, spec = parse_prior("film_half_length[boundary]=0.085mm:0.3")
+    assert (name, spec.name, spec.center, spec.role) == (name, name, 8.5e-5, "physical")
+    assert parse_prior("drag_torque=0.025:0.3")[1].center == 0.025
+    assert parse_prior("drag_torque=0.025Nm:0.3")[1].center == 0.025
+    name, spec = parse_prior("viscosity=0.49Pas:0.2")
+    assert (name, spec.center, spec.unit) == ("viscosity", 0.49, "Pa s")
     for text, problem in (
         ("min_film=2um", "expected NAME=CENTER:LOG_SD"),
         ("min_film=x:0.1", "expected NAME=CENTER:LOG_SD"),
@@ -90,7 +98,33 @@ def test_a_prior_from_the_command_line():
         ("viscosity_scale=1mm:0.1", "has no unit"),
         ("min_film=1000um:0.1", "outside the range"),
         ("min_film=2um:-0.1", "log_sd must be a positive number"),
-        ("drag_torque=0.02:0.1", "not a nuisance parameter"),
+        ("backlash=0.8mm:0.1", "not a parameter that takes a prior"),
+        ("film_half_length=8.5e-5:0.2", r"is in mm and must say so, e.g\. "
+         r"film_half_length=0\.085mm:0\.2 if 8\.5e-05 was in m"),
+        ("drag_torque=0.025mm:0.3", "drag_torque's centre is in N m"),
     ):
         with pytest.raises(RattlefitError, match=problem):
             parse_prior(text)
+
+
+def test_a_prior_on_the_viscosity_in_pa_s_is_the_factors_at_the_first_recordings_oil():
+    import rattlefit as rf
+    from rattlefit import rig
+
+    rigs = [rig.setup(rf.read_recording("data/pairII_boundary_65.6_20pct_16Hz.h5"))]
+    _, spec = parse_prior("viscosity=0.3:0.2")
+    options = rf.FitOptions(priors={"viscosity": spec})  # accepted under its own name
+    (scale,) = (s for s in default_specs(rigs, options.priors) if s.name == "viscosity_scale")
+    assert scale.center == pytest.approx(0.3 / rigs[0].viscosity, rel=1e-12)
+    assert (scale.log_sd, scale.role) == (0.2, "nuisance")
+    assert "viscosity" not in [s.name for s in default_specs(rigs, options.priors)]
+
+
+def test_a_role_is_derived_from_the_prior_only_when_not_given():
+    assert ParameterSpec("x", "m", 1.0, 2.0).role == "physical"
+    assert ParameterSpec("x", "m", 1.0, 2.0, center=1.5, log_sd=0.1).role == "nuisance"
+    assert ParameterSpec("x", "m", 1.0, 2.0, center=1.5, log_sd=0.1, role="physical").role == (
+        "physical"
+    )
+    with pytest.raises(RattlefitError, match="role 'free' is not one of"):
+        ParameterSpec("x", "m", 1.0, 2.0, role="free")

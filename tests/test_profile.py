@@ -234,7 +234,7 @@ def test_continuation_follows_a_bent_valley_that_the_straight_scan_leaves():
     assert hi == end and -lo == end
     # every point inside is on the floor, and the nuisance's interval is widened to span them
     z_lo, z_hi = np.array([lo, -0.5, -1.0]), np.array([hi, 0.5, 1.0])
-    specs = [SimpleNamespace(log_sd=v) for v in (None, 10.0, None)]
+    specs = [SimpleNamespace(log_sd=v, nuisance=v is not None) for v in (None, 10.0, None)]
     span_profile_points(profiles, threshold, z_lo, z_hi, specs)
     assert z_hi[1] == pytest.approx(2 * np.sin(exact), abs=0.15)
     assert z_lo[1] == pytest.approx(-2 * np.sin(exact), abs=0.15)

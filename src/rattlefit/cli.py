@@ -120,10 +120,12 @@ def _prior_option(func):
         "priors",
         multiple=True,
         metavar="NAME=CENTER:LOG_SD",
-        help="Replace a nuisance's log-normal prior (repeatable): NAME is viscosity_scale, "
-        "stiffness_scale or min_film, CENTER its median in the unit the table shows, named "
-        "(min_film in um), LOG_SD the sd of its natural log; e.g. --prior min_film=2um:0.1 "
-        "when h_min is known to about 10 %.",
+        help="Give a parameter a log-normal prior (repeatable): NAME is film_half_length (or "
+        "film_half_length[LUBRICATION]), drag_torque, viscosity (Pa s, at the first "
+        "recording's oil temperature), viscosity_scale, stiffness_scale or min_film; CENTER "
+        "its median in the unit the table shows (named where it is not SI: mm, um); LOG_SD "
+        "the sd of its natural log. E.g. --prior min_film=2um:0.1 when h_min is known to "
+        "about 10 %, --prior drag_torque=0.025:0.3.",
     )(func)
 
 

@@ -251,7 +251,7 @@ def trial_of(
         base, baseline.state.z, n_validation, np.random.default_rng(s_validation)
     )
     dry = dry_films(base, recordings)
-    nuisances = [i for i, sp in enumerate(base.specs) if sp.log_sd is not None]
+    nuisances = [i for i, sp in enumerate(base.specs) if sp.nuisance]
     return Trial(
         problem,
         noise,

@@ -16,7 +16,7 @@ from typing import Any
 
 from ..errors import RattlefitError
 from ..quantities import FILM
-from .parameters import ParameterSpec, default_specs
+from .parameters import VISCOSITY, ParameterSpec, default_specs
 
 #: The feature sets a fit can compare (``FitOptions.features``).
 FEATURE_SETS = ("bands", "bands+folded")
@@ -270,7 +270,7 @@ class FitOptions:
         self._check_priors()
 
     def _check_priors(self) -> None:
-        known = {s.name for s in default_specs([], {})}  # every name but the backlashes
+        known = {s.name for s in default_specs([], {})} | {VISCOSITY}  # but the backlashes
         for name, spec in self.priors.items():
             # a misspelt name would otherwise replace nothing, silently
             if not (name in known or name.startswith(("backlash[", f"{FILM}["))):

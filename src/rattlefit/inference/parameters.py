@@ -1,12 +1,16 @@
-"""The fitted parameters: their coordinates, ranges and priors.
+"""The fitted parameters: their coordinates, ranges, priors and roles.
 
 Every parameter :func:`~rattlefit.inference.fit.identify` fits is a :class:`ParameterSpec`: a range
 ``(lower, upper)`` in SI units, mapped from an unconstrained coordinate ``z`` by
-``lower · (upper/lower)^sigmoid(z)`` (positive and bounded without clipping), with an
-optional log-normal prior. :func:`default_specs` lists them for a set of recordings: one film
-half-length per lubrication, the drag torque, the viscosity and stiffness factors, ``h_min``,
-and each recording's backlash within its measurement uncertainty; :func:`nuisance_prior` and
-:func:`parse_prior` replace a nuisance's prior.
+``lower · (upper/lower)^sigmoid(z)`` (positive and bounded without clipping), an optional
+log-normal prior, and a role (:data:`ROLES`): *physical* (what the fit is for: profiled, its
+range's lower end standing for zero), *nuisance* (fitted with its prior, not profiled),
+*group* (the squeeze-film momentum that replaces a film's coordinate while it is profiled) or
+*effect* (a diagnosis candidate's field). A prior does not make a parameter a nuisance:
+``--prior drag_torque=0.025:0.3`` keeps the drag torque physical. :func:`default_specs` lists
+them for a set of recordings: one film half-length per lubrication, the drag torque, the
+viscosity and stiffness factors, ``h_min``, and each recording's backlash within its
+measurement uncertainty; :func:`parameter_prior` and :func:`parse_prior` give one a prior.
 """
 
 from __future__ import annotations
@@ -23,11 +27,14 @@ from scipy.special import expit
 
 from ..errors import RattlefitError
 from ..physics.model import DEFAULT_MIN_FILM
-from ..quantities import FILM, quantity
+from ..quantities import FILM, base_name, quantity
 from ..util import array_namespace
 
 if TYPE_CHECKING:
     from ..rig import RigSetup
+
+#: The roles a parameter can have (see the module notes).
+ROLES = ("physical", "nuisance", "group", "effect")
 
 #: Range ends of the unconstrained coordinate (sigmoid(±8) is within 3.4e-4 of the end:
 #: a = 1.003 µm, for instance).
@@ -36,10 +43,14 @@ Z_END = 8.0
 
 @dataclasses.dataclass(frozen=True)
 class ParameterSpec:
-    """One fitted parameter: its range, optional log-normal prior and finite-difference step.
+    """One fitted parameter: its range, optional log-normal prior, finite-difference step and
+    role.
 
     The value is ``lower · (upper/lower)^sigmoid(z)``. With ``center`` and ``log_sd`` the
-    residual gets the prior row ``(log v − log center) / log_sd``.
+    residual gets the prior row ``(log v − log center) / log_sd``. ``role`` is one of
+    :data:`ROLES`; left empty, a parameter with a prior is a nuisance and one without is
+    physical. Raises :class:`~rattlefit.errors.RattlefitError` for an empty range or an
+    unknown role.
     """
 
     name: str
@@ -49,10 +60,22 @@ class ParameterSpec:
     center: float | None = None
     log_sd: float | None = None
     fd_log_step: float = 0.15
+    role: str = ""
 
     def __post_init__(self):
         if not (0 < self.lower < self.upper):
             raise RattlefitError(f"parameter {self.name}: need 0 < lower < upper")
+        if not self.role:
+            object.__setattr__(self, "role", "nuisance" if self.log_sd is not None else "physical")
+        if self.role not in ROLES:
+            raise RattlefitError(
+                f"parameter {self.name}: role {self.role!r} is not one of {', '.join(ROLES)}"
+            )
+
+    @property
+    def nuisance(self) -> bool:
+        """Fitted with its prior and not profiled (:data:`ROLES`)."""
+        return self.role == "nuisance"
 
     @property
     def log_range(self) -> float:
@@ -111,9 +134,10 @@ def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec
     shared.
     """
     films = films_of(rigs) or (FILM,)
+    physical = {"fd_log_step": 0.2, "role": "physical"}
     specs = [
-        *(ParameterSpec(n, "m", 1e-6, 5e-3, fd_log_step=0.2) for n in dict.fromkeys(films)),
-        ParameterSpec("drag_torque", "N m", 2e-3, 0.5, fd_log_step=0.15),
+        *(ParameterSpec(n, "m", 1e-6, 5e-3, **physical) for n in dict.fromkeys(films)),
+        ParameterSpec("drag_torque", "N m", 2e-3, 0.5, fd_log_step=0.15, role="physical"),
         ParameterSpec("viscosity_scale", "1", 0.2, 5.0, center=1.0, log_sd=0.25, fd_log_step=0.15),
         ParameterSpec(
             "stiffness_scale",
@@ -143,30 +167,50 @@ def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec
                 fd_log_step=min(0.15, 1.5 * rel),
             )
         )
+    if VISCOSITY in priors and rigs:
+        priors = {**priors, "viscosity_scale": viscosity_prior(priors[VISCOSITY], rigs[0])}
     return tuple(priors.get(s.name, s) for s in specs)
 
 
-#: The nuisance parameters whose prior a caller may replace with :func:`nuisance_prior`: the
-#: recording-independent parameters of :func:`default_specs` that have a prior.
-NUISANCES = tuple(s.name for s in default_specs([], {}) if s.log_sd is not None)
+#: The name under which a prior on the viscosity is given in Pa s (at the first recording's
+#: oil temperature; the fit's coordinate is the factor ``viscosity_scale`` on the oil's μ).
+VISCOSITY = "viscosity"
+#: The nuisance parameters: the recording-independent parameters of :func:`default_specs`
+#: that are fitted with a prior and not profiled.
+NUISANCES = tuple(s.name for s in default_specs([], {}) if s.nuisance)
+#: Every name a prior can be given under (:func:`parameter_prior`): the physical parameters
+#: (a film half-length, also as ``film_half_length[lubrication]``), the viscosity in Pa s
+#: and the nuisances.
+PRIORABLE = (FILM, "drag_torque", VISCOSITY, *NUISANCES)
 
 
-def nuisance_prior(name: str, center: float, log_sd: float) -> ParameterSpec:
-    """The prior of nuisance ``name`` (one of :data:`NUISANCES`) replaced by a log-normal one
-    with median ``center`` (in the parameter's unit: ``min_film`` in m, the scales as
-    factors) and standard deviation ``log_sd`` in the natural log; the range is kept. Pass it
-    as ``FitOptions(priors={name: nuisance_prior(name, ...)})``.
+def viscosity_prior(spec: ParameterSpec, rig: RigSetup) -> ParameterSpec:
+    """A prior on the viscosity in Pa s (``spec``, named :data:`VISCOSITY`) as the prior of
+    the factor ``viscosity_scale`` on the oil's μ at ``rig``'s oil temperature."""
+    (scale,) = (s for s in default_specs([], {}) if s.name == "viscosity_scale")
+    return dataclasses.replace(scale, center=spec.center / rig.viscosity, log_sd=spec.log_sd)
+
+
+def parameter_prior(name: str, center: float, log_sd: float) -> ParameterSpec:
+    """Parameter ``name`` (one of :data:`PRIORABLE`) with a log-normal prior of median
+    ``center`` (SI: ``min_film`` and a film half-length in m, the drag torque in N m, the
+    viscosity in Pa s, the scales as factors) and standard deviation ``log_sd`` in the natural
+    log; its range and role are kept (a physical parameter stays physical). Pass it as
+    ``FitOptions(priors={name: parameter_prior(name, ...)})``.
 
     What the rig knows besides the recording belongs here: ``h_min`` from the flanks'
     roughness, for instance. In mild rattle the data pin the squeeze film's momentum sink,
     which scales as a³/h_min², so a is known only as well as ``h_min`` is (the default prior's
-    95 % factor 15.6 becomes about 6 in a).
+    95 % factor 15.6 becomes about 6 in a). Raises
+    :class:`~rattlefit.errors.RattlefitError` naming an unknown name, a centre outside the
+    range or a log_sd that is not positive.
     """
-    if name not in NUISANCES:
+    if base_name(name) not in PRIORABLE:
         raise RattlefitError(
-            f"prior {name!r}: not a nuisance parameter; expected one of {', '.join(NUISANCES)}"
+            f"prior {name!r}: not a parameter that takes a prior; expected one of "
+            f"{', '.join(PRIORABLE)}"
         )
-    (spec,) = (s for s in default_specs([], {}) if s.name == name)
+    spec = prior_template(name)
     if not (math.isfinite(center) and spec.lower < center < spec.upper):
         raise RattlefitError(
             f"prior {name}: centre {center:g} {spec.unit} is outside the range "
@@ -177,15 +221,27 @@ def nuisance_prior(name: str, center: float, log_sd: float) -> ParameterSpec:
     return dataclasses.replace(spec, center=center, log_sd=log_sd)
 
 
+def prior_template(name: str) -> ParameterSpec:
+    """The default spec a prior on ``name`` replaces (its range and role): the viscosity's is
+    the catalogue oil's range in Pa s at 20 °C's order, a film's carries ``name``."""
+    if name == VISCOSITY:
+        return ParameterSpec(VISCOSITY, "Pa s", 1e-3, 10.0, role="nuisance")
+    (spec,) = (s for s in default_specs([], {}) if s.name == base_name(name))
+    return dataclasses.replace(spec, name=name)
+
+
 _CENTER = re.compile(r"\s*([-+0-9.eE]+)\s*([a-zA-Zµ]*)\s*")
 
 
 def parse_prior(text: str) -> tuple[str, ParameterSpec]:
-    """``"NAME=CENTER:LOG_SD"`` → ``(name, spec)`` of :func:`nuisance_prior`, for command
+    """``"NAME=CENTER:LOG_SD"`` → ``(name, spec)`` of :func:`parameter_prior`, for command
     lines. CENTER is in the quantity's display unit (:mod:`rattlefit.quantities`), which it
-    must name when there is one: ``min_film=2um:0.1`` (h_min 2 µm, known to about 10 %),
-    ``viscosity_scale=1:0.05``. Raises :class:`~rattlefit.errors.RattlefitError` naming the
-    problem."""
+    must name where that differs from SI (``min_film=2um:0.1``: h_min 2 µm, known to about
+    10 %; ``film_half_length=0.085mm:0.3``), may name where it is SI
+    (``drag_torque=0.025:0.3``, ``viscosity=0.49Pas:0.2``; spaces left out) and must not name
+    for a factor (``viscosity_scale=1:0.05``). Raises
+    :class:`~rattlefit.errors.RattlefitError` naming the problem and, for a unit slip, the
+    probable fix."""
     name, sep, rest = text.partition("=")
     center, sep2, log_sd = rest.partition(":")
     name = name.strip()
@@ -198,14 +254,16 @@ def parse_prior(text: str) -> tuple[str, ParameterSpec]:
         raise RattlefitError(
             f"prior {text!r}: expected NAME=CENTER:LOG_SD, e.g. min_film=2um:0.1"
         ) from None
-    if name not in NUISANCES:
-        return name, nuisance_prior(name, value, sd)  # raises, naming the nuisances
+    if base_name(name) not in PRIORABLE:
+        return name, parameter_prior(name, value, sd)  # raises, naming the known names
     q = quantity(name)
-    if m.group(2) not in {q.display_unit, q.typed_unit}:
-        (usual,) = (s.center for s in default_specs([], {}) if s.name == name)
+    typed, shown = m.group(2), q.display_unit.replace(" ", "")
+    if typed not in {shown, shown.replace("µ", "u")} and (typed or q.scale != 1.0):
+        problem = f"is in {q.display_unit} and must say so" if q.scale != 1.0 else (
+            f"is in {q.display_unit}" if q.display_unit else "has no unit")  # fmt: skip
         raise RattlefitError(
-            f"prior {text!r}: {name}'s centre "
-            + (f"is in {q.display_unit} and must say so" if q.display_unit else "has no unit")
-            + f", e.g. {name}={q.shown(usual):g}{q.typed_unit}:{sd:g}"
+            f"prior {text!r}: {name}'s centre {problem}, e.g. "
+            f"{name}={q.shown(value):g}{q.typed_unit.replace(' ', '')}:{sd:g} if {value:g} was "
+            f"in {q.unit}"
         )
-    return name, nuisance_prior(name, value / q.scale, sd)
+    return name, parameter_prior(name, value / q.scale, sd)

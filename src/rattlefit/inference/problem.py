@@ -43,7 +43,7 @@ from ..simulation.solve import (
 )
 from ..util import array_namespace
 from .options import FitOptions
-from .parameters import default_specs, films_of, momentum_name
+from .parameters import VISCOSITY, default_specs, films_of, momentum_name
 
 
 def _stack(trees):
@@ -339,7 +339,7 @@ def build_problem(
             f = np.concatenate([f, rig.folded(n)])
         data.append(f)
     specs = default_specs(rigs, options.priors)
-    unused = sorted(set(options.priors) - {s.name for s in specs})
+    unused = sorted(set(options.priors) - {s.name for s in specs} - {VISCOSITY})
     if unused:  # e.g. "a" in a fit across lubrications, or a backlash beyond the files
         raise RattlefitError(
             f"FitOptions.priors: {', '.join(map(repr, unused))} is not a parameter of this fit "

@@ -333,9 +333,9 @@ def estimate(spec: ParameterSpec, z: float, lo_z: float, hi_z: float) -> Paramet
     ``bound="interval"``), and for a parameter with a prior at most half the prior's own 95 %
     width, so that the data, not the prior, pin it down (else ``bound="prior"``, and the
     interval spans the prior's central 95 % too). The estimate is the optimum's value in
-    every case. For the free
-    parameters (``a``, ``drag_torque``) the lower end of the range stands for zero (dry
-    flanks, no drag), and a bound that runs into it reads 0.
+    every case. For every parameter that is not a nuisance (``a``, ``drag_torque``, an
+    effect's size) the lower end of the range stands for zero (dry flanks, no drag, no
+    effect), and a bound that runs into it reads 0.
     """
     value = float(spec.value(z))
     lower, upper = float(spec.value(lo_z)), float(spec.value(hi_z))
@@ -343,7 +343,7 @@ def estimate(spec: ParameterSpec, z: float, lo_z: float, hi_z: float) -> Paramet
     u_lo = (math.log(lower) - math.log(spec.lower)) / spec.log_range
     u_hi = (math.log(upper) - math.log(spec.lower)) / spec.log_range
     at_top, at_bottom = u_hi > 1 - edge, u_lo < edge
-    floor = 0.0 if spec.log_sd is None else spec.lower
+    floor = spec.lower if spec.nuisance else 0.0
 
     def result(lo, hi, identified, bound):
         return ParameterEstimate(spec.name, spec.unit, value, lo, hi, identified, bound)

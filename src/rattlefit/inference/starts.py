@@ -56,7 +56,7 @@ def starting_points(
         nuisances = [
             (i, nuisance_start_range(s, START_NUISANCE_SDS))
             for i, s in enumerate(specs)
-            if s.log_sd is not None
+            if s.nuisance
         ]
         (child,) = rng.spawn(1)
         starts = np.concatenate([starts, sobol_points(specs, spread + nuisances, m, child)])

@@ -127,7 +127,7 @@ def profile_scan(
     """
     zs, owners = [], []
     for i, spec in enumerate(specs):
-        if spec.log_sd is not None or (only is not None and i not in only):
+        if spec.nuisance or (only is not None and i not in only):
             continue
         sd = math.sqrt(max(cov[i, i], 0.0))
         ts = {spec.z_of(spec.lower * (spec.upper / spec.lower) ** f) for f in SCAN_FRACTIONS}
@@ -433,12 +433,12 @@ def continue_profiles(
 
 
 def span_profile_points(profiles: dict, threshold: float, z_lo, z_hi, specs) -> None:
-    """Widen the intervals of the parameters with a prior (``z_lo``, ``z_hi``, in place) to
-    span every profile point inside the ``threshold``: each is inside the 95 % region, so its
-    value of every parameter is inside that parameter's profile interval."""
+    """Widen the intervals of the nuisances, which are not profiled (``z_lo``, ``z_hi``, in
+    place), to span every profile point inside the ``threshold``: each is inside the 95 %
+    region, so its value of every parameter is inside that parameter's profile interval."""
     inside = [zk for prof in profiles.values() for dc, zk in prof.values() if dc < threshold]
     for j, s in enumerate(specs):
-        if s.log_sd is not None and inside:
+        if s.nuisance and inside:
             values = [float(zk[j]) for zk in inside]
             z_lo[j], z_hi[j] = min(z_lo[j], min(values)), max(z_hi[j], max(values))
 

@@ -91,7 +91,7 @@ def jitter_points(problem: Problem, z, only: Sequence[int] | None = None) -> np.
     noise of a profile's Δcost."""
     p = len(problem.specs)
     free = [
-        i for i, s in enumerate(problem.specs) if s.log_sd is None and (only is None or i in only)
+        i for i, s in enumerate(problem.specs) if not s.nuisance and (only is None or i in only)
     ]
     jitter = np.stack([z + h * np.eye(p)[i] for i in free for h in PROFILE_JITTER])
     return np.clip(jitter, -Z_END, Z_END)
