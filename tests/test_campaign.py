@@ -363,13 +363,15 @@ def test_the_report_table_marks_a_poor_or_unfinished_fit_and_the_csv_prints_no_f
         }  # fmt: skip
 
     rows = [
-        row("drag_torque", 0.07616, 0.0, 0.2325, "upper", poor_fit=True, converged=False),
-        row("film_half_length", 8e-5, 5e-5, 1.1e-4, "interval", poor_fit=True, converged=False),
-    ]
+        row("drag_torque", 0.07616, 0.0, 0.2325, "upper", poor_fit=True, converged=False,
+            below_optimum=17.6),
+        row("film_half_length", 8e-5, 5e-5, 1.1e-4, "interval", poor_fit=True, converged=False,
+            below_optimum=17.6),
+    ]  # fmt: skip
     html = estimates_table(rows)
     assert "0.07616 (≤ 0.2325)" in html  # not "0.07616 ≤ 0.2325", a comparison
-    assert "71.0/28 (poor fit, not converged)" in html
-    good = [dict(r, poor_fit=False, converged=True) for r in rows]
+    assert "71.0/28 (poor fit, not converged, profiles 17.6 below the optimum)" in html
+    good = [dict(r, poor_fit=False, converged=True, below_optimum=0.0) for r in rows]
     assert "71.0/28</td>" in estimates_table(good)
     _, csv = write_table(tmp_path, rows)
     text = csv.read_text()

@@ -650,7 +650,7 @@ def test_the_profile_figure_shades_the_printed_interval_on_a_non_negative_cost_a
     assert fig.axes[1].get_title() == ""
 
 
-def test_an_unconverged_fit_is_told_what_to_run_for_what_was_run():
+def test_an_unconverged_fit_is_told_what_to_run_and_one_state_reaches_every_output():
     # the HTML names the next step for the fit that was run: a quick fit is told to run a full
     # one, a full fit is not told to drop --quick
     from rattlefit.io.recording import read_recording
@@ -672,6 +672,17 @@ def test_an_unconverged_fit_is_told_what_to_run_for_what_was_run():
         html = html_report(fit=doc, recordings=[rec])
         (note,) = [p for p in html.split("<p") if "did not converge" in p]
         assert wanted in note and unwanted not in note
+    # profiles below the optimum: one state in the JSON, the table and the HTML
+    low = {"drag_torque": [(0.01, 5.0), (0.02, 0.0), (0.03, -17.6)]}
+    res = dataclasses.replace(
+        _result(30.0, 28, recordings=[path], profiles=low),
+        spectra=Spectra(bands, bands, 0.1 + 0 * bands, np.geomspace(10.0, 1e3, 5)),
+    )
+    doc = res.to_json()
+    assert doc["fit"]["below_optimum"] == {"depth": 17.6, "parameter": "drag_torque"}
+    assert "reach 17.6 below the optimum's cost" in format_table(res)
+    assert "reach 17.6 below the optimum" in html_report(fit=doc, recordings=[rec])
+    assert _result(30.0, 28).to_json()["fit"]["below_optimum"] is None
 
 
 def test_the_fit_csv_holds_the_json_parameters_row_by_row(tmp_path):

@@ -222,9 +222,18 @@ def estimates_table(rows: list[dict]) -> str:
 
 
 def fit_cell(row: dict) -> str:
-    """A fit's χ²/dof, marked as a poor fit and as unconverged where it is."""
-    marks = [m for m, on in (("poor fit", row["poor_fit"]),
-                             ("not converged", not row.get("converged", True))) if on]  # fmt: skip
+    """A fit's χ²/dof, marked as a poor fit, as unconverged and as having profiles below its
+    optimum where it is."""
+    depth = row.get("below_optimum") or 0.0
+    marks = [
+        m
+        for m, on in (
+            ("poor fit", row["poor_fit"]),
+            ("not converged", not row.get("converged", True)),
+            (f"profiles {depth:.1f} below the optimum", depth > 0),
+        )
+        if on
+    ]
     return f"{row['chi2']:.1f}/{row['dof']}" + (f" ({', '.join(marks)})" if marks else "")
 
 

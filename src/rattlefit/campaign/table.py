@@ -16,7 +16,8 @@ JSON):
   viscosity at the recording's own oil temperature), ``bound``, ``identified``, ``truth`` (a
   synthetic recording's, else empty);
 * the fit: ``chi2``, ``dof``, ``p_value``, ``poor_fit``, ``converged`` (False where a search
-  stopped at its step limit), ``seed``, ``rattlefit_version``;
+  stopped at its step limit), ``below_optimum`` (how far the profiles reach below the
+  optimum's cost; 0 where they do not), ``seed``, ``rattlefit_version``;
 * when asked for: ``posterior_median``, ``posterior_lower``, ``posterior_upper`` (the 95 %
   credible interval) and ``diagnosis`` (the verdict).
 """
@@ -63,6 +64,7 @@ COLUMNS = (
     "p_value",
     "poor_fit",
     "converged",
+    "below_optimum",
     "seed",
     "rattlefit_version",
     "posterior_median",
@@ -119,6 +121,7 @@ def unit_rows(unit: Unit, doc: dict, recordings: list[dict], *, version: str) ->
                     "p_value": fit["p_value"],
                     "poor_fit": bool(fit["poor_fit"]),
                     "converged": bool(fit.get("success", True)),
+                    "below_optimum": (fit.get("below_optimum") or {}).get("depth", 0.0),
                     "seed": fit["seed"],
                     "rattlefit_version": version,
                     "scale": scale,

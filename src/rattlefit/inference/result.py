@@ -268,6 +268,7 @@ class FitResult:
                 "iterations": st.n_iterations,
                 "success": st.success,
                 "message": st.message,
+                "below_optimum": below_optimum(est.profiles),
                 "seed": pr.seed,
                 "platform": pr.platform,  # seeded results depend on it
                 "wall_time_s": pr.wall_time,
@@ -285,6 +286,23 @@ class FitResult:
                 "sigma": [sp.bands_of(s) for s in sp.sigma],
             },
         }
+
+
+#: A profile point this far below the optimum's cost is reported (``fit.below_optimum`` in the
+#: JSON, the table, the HTML report, the campaign's table): the optimum was not the lowest
+#: point the profiles found, and the intervals about it are rough.
+BELOW_OPTIMUM = 0.5
+
+
+def below_optimum(profiles: dict) -> dict | None:
+    """How far the lowest profile point lies below the optimum's cost (``depth``, ≥ 0) and
+    whose profile it is on (``parameter``), when more than :data:`BELOW_OPTIMUM`; else None.
+    ``profiles``: parameter name → (value, Δcost) pairs (:attr:`Estimates.profiles`)."""
+    lows = [(min(d for _, d in pts), name) for name, pts in profiles.items() if len(pts)]
+    if not lows or min(lows)[0] >= -BELOW_OPTIMUM:
+        return None
+    low, name = min(lows)
+    return {"depth": float(-low), "parameter": name}
 
 
 def map_params_of(problem: Problem, z) -> list[dict[str, float]]:

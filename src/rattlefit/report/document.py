@@ -12,7 +12,15 @@ from ..inference.options import unfinished_fit_advice
 from ..io.recording import Recording
 from ..util import atomic_write
 from . import figures
-from .explain import display_unit, estimate_cells, explain, meaning, shown, verdict_word
+from .explain import (
+    below_optimum_sentence,
+    display_unit,
+    estimate_cells,
+    explain,
+    meaning,
+    shown,
+    verdict_word,
+)
 from .inputs import (
     check,
     idata_recordings,
@@ -75,7 +83,8 @@ def _summary_section(recordings: list[Recording], paths: list[str]) -> str:
 
 
 def _fit_notes(f: dict) -> list[str]:
-    """Warnings on the fit itself: a poor χ², an unfinished search, a minority regime."""
+    """Warnings on the fit itself: a poor χ², an unfinished search, profiles that reach below
+    the optimum, a minority regime."""
     out = []
     if f.get("poor_fit"):
         which = ", ".join(_name(p) for p in f.get("poorly_fitted_recordings") or [])
@@ -90,6 +99,9 @@ def _fit_notes(f: dict) -> list[str]:
             f"The search did not converge ({escape(str(f.get('message', '')))}): the optimum "
             f"and the intervals are rough; {escape(unfinished_fit_advice(f.get('options', {})))}."
         )
+    if f.get("below_optimum"):
+        sentence = below_optimum_sentence(f["below_optimum"])
+        out.append(escape(sentence[0].upper() + sentence[1:]) + ".")
     for path, share in zip(
         f["recordings"], f.get("regime_share_per_recording") or [], strict=False
     ):

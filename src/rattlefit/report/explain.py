@@ -23,6 +23,16 @@ def shown(value: float, name: str, unit: str | None = None) -> str:
     return f"{value * display(name, unit)[0]:.4g}"
 
 
+def below_optimum_sentence(low: dict) -> str:
+    """The words for a fit's ``below_optimum`` (:func:`~rattlefit.inference.result.
+    below_optimum`): how far its profiles reach below the optimum's cost, and what it means."""
+    return (
+        f"the profiles reach {low['depth']:.1f} below the optimum's cost "
+        f"({low['parameter']}'s lowest): the optimum is not the lowest point found, and the "
+        "intervals about it are rough"
+    )
+
+
 def display_unit(name: str, unit: str | None = None) -> str:
     """The unit the report shows parameter ``name`` in (the registry's)."""
     return display(name, unit)[1]

@@ -8,8 +8,9 @@ import numpy as np
 from ..diagnosis.result import MISSED_Z, Diagnosis
 from ..inference.posterior import Posterior
 from ..inference.profile import CHI2_1_95
-from ..inference.result import FitResult, identified_ratio
+from ..inference.result import FitResult, below_optimum, identified_ratio
 from ..quantities import FILM, base_name, display
+from .explain import below_optimum_sentence
 from .wording import finding_size, verdict_sentence
 
 #: The parameters the table shows first: the films, the drag torque, the viscosity and the
@@ -70,7 +71,7 @@ def format_table(result: FitResult) -> str:
     )
     if "threshold" in result.estimates.profile:
         lines.append(_profile_line(result.estimates.profile))
-    lines += below_optimum(result.estimates.profiles)
+    lines += below_optimum_note(result.estimates.profiles)
     lines += advice
     for k, share in enumerate(st.regime_share):
         if share < 0.5:
@@ -124,22 +125,11 @@ def _profile_line(profile: dict) -> str:
     )
 
 
-#: A profile point this far below the optimum's cost is reported: the optimum was not the
-#: lowest point the profiles found.
-BELOW_OPTIMUM = 0.5
-
-
-def below_optimum(profiles: dict) -> list[str]:
-    """A line saying how far the profiles reach below the optimum's cost, when some point is
-    more than :data:`BELOW_OPTIMUM` below it; else none."""
-    lows = [(min(d for _, d in pts), name) for name, pts in profiles.items() if len(pts)]
-    if not lows or min(lows)[0] >= -BELOW_OPTIMUM:
-        return []
-    low, name = min(lows)
-    return [
-        f"note: the profiles reach {-low:.1f} below the optimum's cost ({name}'s lowest): the "
-        "optimum is not the lowest point found, and the intervals about it are rough"
-    ]
+def below_optimum_note(profiles: dict) -> list[str]:
+    """The table's line saying how far the profiles reach below the optimum's cost
+    (:func:`~rattlefit.inference.result.below_optimum`); none when they do not."""
+    low = below_optimum(profiles)
+    return [f"note: {below_optimum_sentence(low)}"] if low else []
 
 
 def format_posterior(post: Posterior) -> str:
