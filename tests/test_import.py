@@ -301,3 +301,54 @@ def test_a_bad_text_file_names_the_column_and_the_line(bundled, tmp_path, text, 
     with pytest.raises(RecordingError) as err:
         import_recording(tmp_path / "bad.csv", tmp_path / "map.toml", tmp_path / "out.h5")
     assert err.value.field == field and problem in err.value.problem
+
+
+def _bad_rig_files(tmp_path, rec):
+    """(rig file, map) pairs, each refused for one reason, with a word its line must hold."""
+    deg = 360.0 / rec.counts_per_rev
+    write_tdms_channels(tmp_path / "deg.tdms", rec.primary * deg, rec.secondary * deg,
+                        unit_string="deg")  # fmt: skip
+    write_tdms_channels(tmp_path / "bare.tdms", rec.primary * deg, rec.secondary * deg)
+    span = 2**32
+    offset = span - int(rec.primary[rec.n_samples // 10])
+    wrapped = [((c + offset) % span).astype(np.uint32) for c in (rec.primary, rec.secondary)]
+    write_tdms_channels(tmp_path / "wrap.tdms", *wrapped)
+    (tmp_path / "cell.csv").write_text(
+        "t,Enc_Primary_counts,Enc_Secondary_counts\n0,1,2\n0.0001,x,3\n0.0002,3,4\n"
+    )
+    maps = {
+        "rate": {**TDMS_ENCODERS, "sample_rate_hz": 20000},
+        "unit": {**TDMS_ENCODERS, "unit": "rad"},
+        "plain": dict(TDMS_ENCODERS),
+        "csv": {**CSV_ENCODERS, "counts_per_rev": 40000, "time": "t"},
+    }
+    for name, enc in maps.items():
+        write_map(tmp_path / f"{name}.toml", rec, enc)
+    (tmp_path / "unversioned.toml").write_text(
+        "\n".join((tmp_path / "plain.toml").read_text().splitlines()[2:])
+    )
+    return [
+        ("deg.tdms", "rate.toml", "gives 10000 Hz"),
+        ("deg.tdms", "unit.toml", "says 'deg'"),
+        ("bare.tdms", "plain.toml", 'unit = "deg"'),
+        ("wrap.tdms", "plain.toml", "rollover_bits = 32"),
+        ("cell.csv", "csv.toml", "line 3 has 'x'"),
+        ("deg.tdms", "unversioned.toml", "version = 1"),
+    ]
+
+
+def test_every_bad_rig_file_is_one_line_exit_2_and_nothing_written(bundled, tmp_path):
+    from click.testing import CliRunner
+
+    from rattlefit.cli import main
+
+    for source, channel_map, words in _bad_rig_files(tmp_path, bundled):
+        out = tmp_path / "out.h5"
+        result = CliRunner().invoke(
+            main, ["import", str(tmp_path / source), "--map", str(tmp_path / channel_map),
+                   "-o", str(out)],
+        )  # fmt: skip
+        lines = [x for x in result.output.splitlines() if x.startswith("rattlefit: error")]
+        assert result.exit_code == 2 and len(lines) == 1, (source, channel_map, result.output)
+        assert words in lines[0], lines[0]
+        assert not out.exists() and not list(tmp_path.glob("*.tmp"))
