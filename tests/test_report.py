@@ -702,3 +702,25 @@ def test_the_fit_csv_holds_the_json_parameters_row_by_row(tmp_path):
         assert r["unit"] == p["unit"] and r["identified"] == str(p["identified"])
         assert (r["converged"], r["chi2"], r["recordings"]) == ("False", "71", "x.h5")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fit.csv"]  # nothing left behind
+
+
+def test_the_report_and_the_plots_show_the_rattle_index_measured_and_at_the_fit(tmp_path):
+    from rattlefit.io.recording import read_recording
+    from rattlefit.report import html_report, plot_igr
+
+    path = "data/pairII_boundary_65.6_20pct_16Hz.h5"
+    bands = np.full((1, 5), -9.0)
+    res = dataclasses.replace(
+        _result(30.0, 28, recordings=[path]),
+        spectra=Spectra(bands, bands, 0.1 + 0 * bands, np.geomspace(10.0, 1e3, 5)),
+    )
+    doc = res.to_json()
+    rec = read_recording(path)
+    assert "Rattle index" not in html_report(fit=doc, recordings=[rec])  # only with fit.igr
+    assert plot_igr(doc, tmp_path) == []
+    doc["fit"]["igr"] = [{"measured": 0.1123, "model": [0.107, 0.112, 0.120], "seed": 0}]
+    html = html_report(fit=doc, recordings=[rec])
+    assert "Rattle index" in html and "measured 0.1123 rad·Hz" in html
+    assert "3 re-simulations 0.113 rad·Hz on average (0.107–0.12)" in html
+    (png,) = plot_igr(doc, tmp_path)
+    assert png.name == "igr.png" and png.read_bytes()[:4] == b"\x89PNG"

@@ -190,6 +190,24 @@ def _write_learned(result, output: Path | None, doc: dict) -> None:
     click.echo(f"wrote {path} (the learned likelihood; --reuse-likelihood reuses it)", err=True)
 
 
+#: Re-simulations of the fitted model behind the report's rattle index (``fit.igr``).
+IGR_RESIMULATIONS = 8
+
+
+def igr_document(result, recordings, seed: int) -> list[dict]:
+    """``fit.igr`` of the JSON: each recording's measured IGR and that of
+    :data:`IGR_RESIMULATIONS` recordings of the fitted model
+    (:func:`~rattlefit.inference.realisation.fitted_igr`, seeded by ``seed``)."""
+    from .inference.realisation import fitted_igr
+    from .rig import setup
+
+    model = fitted_igr(result, recordings, IGR_RESIMULATIONS, seed=seed)
+    return [
+        {"measured": float(setup(rec).rattle_index()), "model": m, "seed": seed}
+        for rec, m in zip(recordings, model, strict=True)
+    ]
+
+
 def _priors(texts) -> dict:
     """``--prior`` values → ``FitOptions.priors``; a bad one is a usage error naming it."""
     from .inference.parameters import parse_prior
@@ -476,7 +494,7 @@ def identify(
     from .inference.options import FitOptions
     from .inference.realisation import fitted_realisations
     from .io.recording import read_recording
-    from .report import format_table, plot_fit
+    from .report import format_table, plot_fit, plot_igr
 
     recordings = [read_recording(f) for f in files]
     given = {"n_realisations": realisations, "n_starts": starts}
@@ -500,12 +518,17 @@ def identify(
         planned = plan(result, recordings, seed=seed, progress=_progress(quiet))
         doc["suggest"] = plan_document(planned, seed=seed, realisations=DESIGN_REALISATIONS)
         text += "\n\n" + format_suggestions(doc["suggest"])
+    if report_file is not None or plot_dir is not None:
+        doc["fit"]["igr"] = igr_document(result, recordings, seed)
     _emit(
         text,
         doc,
         output,
         plot_dir,
-        lambda d: plot_fit(result, recordings, d, fitted_realisations(result, recordings)),
+        lambda d: [
+            *plot_fit(result, recordings, d, fitted_realisations(result, recordings)),
+            *plot_igr(doc, d),
+        ],
     )
     _write_report(report_file, fit=doc, recordings=recordings)
     if csv_file is not None:

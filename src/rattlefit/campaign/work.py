@@ -157,23 +157,6 @@ def inspect_unit(unit: Unit, fit: FitOptions, learned: bool, env: Environment) -
     return out
 
 
-def resimulated_igr(result, recordings, options: FitOptions, n: int) -> list[list[float]]:
-    """Per recording, the IGR (rad·Hz) of ``n`` recordings of the fitted model
-    (:func:`~rattlefit.inference.realisation.fitted_recordings`: the recording's rig, released
-    at seeded points across the gap, seeded by the fit's seed and the recording's index), at
-    the fit's relative tolerance and the absolute tolerances of a dry fit (the tightest), so
-    that every lubrication runs one compiled program."""
-    from ..features.spectra import rattle_index
-    from ..inference.realisation import fitted_recordings
-
-    out = []
-    for k, rec in enumerate(recordings):
-        rng = np.random.default_rng([options.seed, k])
-        again = fitted_recordings(result, rec, k, n, rng=rng, rtol=options.rtol)
-        out.append([float(rattle_index(r.relative_motion, rec.sample_rate_hz)) for r in again])
-    return out
-
-
 def learned_bytes(result) -> bytes | None:
     """The learned likelihood ``result`` fitted on, as the bytes of its stored file
     (:func:`rattlefit.likelihood.store.write_learned`); None for the synthetic likelihood."""
@@ -253,6 +236,8 @@ def fit_stage(task: UnitTask, result, recordings, likelihood: bytes | None) -> d
     its campaign file), and its recordings' descriptions (:func:`describe`) with each one's
     re-simulated IGR (``igr_model``) and its oil's viscosity over the first recording's
     (``viscosity_factor``)."""
+    from ..inference.realisation import fitted_igr
+
     doc = result.to_json()
     if likelihood is not None and task.reuses is not None:
         doc["fit"]["options"]["reuse_likelihood"] = task.reuses
@@ -262,7 +247,8 @@ def fit_stage(task: UnitTask, result, recordings, likelihood: bytes | None) -> d
         describe(rec, path, file_sha256(path))
         for rec, path in zip(recordings, task.unit.paths, strict=True)
     ]
-    igr = resimulated_igr(result, recordings, task.options.fit, task.options.resimulations)
+    n, seed = task.options.resimulations, task.options.fit.seed
+    igr = fitted_igr(result, recordings, n, seed=seed)
     oils = np.asarray(result.state.problem.viscosities, dtype=float)
     for k, (info, model) in enumerate(zip(infos, igr, strict=True)):
         info["igr_model"] = model

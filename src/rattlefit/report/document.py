@@ -212,6 +212,34 @@ def _spectra_section(fit: dict, recordings: list[Recording], paths: list[str]) -
     return "\n".join(parts)
 
 
+def _igr_section(fit: dict, paths: list[str]) -> str:
+    """The rattle index measured and of the fitted model's re-simulations (``fit.igr``, which
+    ``identify`` adds with ``--report`` or ``--plot``); empty without it."""
+    igr = fit["fit"].get("igr")
+    if not igr:
+        return ""
+    rows = []
+    for path, entry in zip(paths, igr, strict=True):
+        model = entry["model"]
+        mean = sum(model) / len(model)
+        rows.append(
+            f"<li>{escape(_name(path))}: measured {entry['measured']:.4g} rad·Hz; the fitted "
+            f"model's {len(model)} re-simulations {mean:.4g} rad·Hz on average "
+            f"({min(model):.4g}–{max(model):.4g})</li>"
+        )
+    names = [Path(p).stem for p in paths]
+    return "\n".join(
+        [
+            "<h2>Rattle index</h2>",
+            "<p>The IGR of the seed paper's eq. (10) (20–5000 Hz) of each recording and of "
+            "recordings of the fitted model from other release states: a fit that holds the "
+            "spectrum should hold the IGR within the re-simulations' spread.</p>",
+            f"<ul>{''.join(rows)}</ul>",
+            _img(figures.igr(igr, names), "rattle index, measured and at the fit"),
+        ]
+    )
+
+
 def _posterior_table(posterior: dict) -> str:
     s = posterior["sampler"]
     head = (
@@ -433,6 +461,7 @@ def html_report(
         _parameter_section(fit, lubrications),
         _suggest_section(fit),
         _spectra_section(fit, recs, paths),
+        _igr_section(fit, paths),
         _posterior_section(posterior, idata, paths),
         _diagnosis_section(diagnosis, paths, recs),
     ]

@@ -14,6 +14,7 @@ from .plots import (
     centred,
     draw_drive_cycle,
     draw_flanks,
+    igr_figure,
     profile_figure,
     pyplot,
 )
@@ -78,6 +79,11 @@ def time_history(time_s, relative_motion_rad, backlash_rad: float, title: str) -
 def profiles(curves: dict, threshold: float | None, parameters: dict) -> bytes:
     """:func:`profile_figure` as PNG."""
     return png(profile_figure(curves, threshold, parameters))
+
+
+def igr(entries: list[dict], names: list[str]) -> bytes:
+    """:func:`~rattlefit.report.plots.igr_figure` as PNG."""
+    return png(igr_figure(entries, names))
 
 
 def trace(idata) -> bytes:

@@ -218,6 +218,40 @@ def profile_panel(ax, name: str, pts: np.ndarray, threshold: float | None, p: di
         ax.set_title(f"a point lies {-lowest:.3g} below the optimum", fontsize=8)
 
 
+def igr_figure(igr: list[dict], names: Sequence[str]):
+    """The rattle index IGR (rad·Hz, the seed paper's eq. 10) of each recording, measured (a
+    black dot) and of the fitted model's re-simulations (open circles, their mean ± sd as a
+    bar), the recordings along the axis. ``igr``: the fit JSON's ``fit.igr``."""
+    fig, ax = pyplot().subplots(figsize=(max(4.5, 1.6 + 1.4 * len(names)), 3.4))
+    for k, entry in enumerate(igr):
+        model = np.asarray(entry["model"], dtype=float)
+        ax.plot(np.full(model.size, k + 0.12), model, "o", mfc="none", color="C0", ms=5,
+                label="fitted model, re-simulated" if k == 0 else None)  # fmt: skip
+        ax.errorbar(k + 0.12, model.mean(), yerr=model.std(ddof=1) if model.size > 1 else 0,
+                    color="C0", capsize=4, lw=1.2)  # fmt: skip
+        ax.plot(k - 0.12, entry["measured"], "o", color="k", ms=6,
+                label="measured" if k == 0 else None)  # fmt: skip
+    ax.set_xticks(range(len(names)), list(names), rotation=15, ha="right", fontsize=8)
+    ax.set_xlim(-0.6, len(names) - 0.4)
+    top = max(max(e["model"] + [e["measured"]]) for e in igr)
+    ax.set_ylim(0.0, 1.15 * top)
+    ax.set_ylabel("IGR (rad·Hz, 20–5000 Hz)")
+    ax.set_title("rattle index, measured and at the fit", fontsize=10)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def plot_igr(doc: dict, directory: str | Path) -> list[Path]:
+    """``igr.png`` (:func:`igr_figure`) in ``directory`` when the fit JSON ``doc`` has
+    ``fit.igr``; nothing otherwise."""
+    igr = doc["fit"].get("igr")
+    if not igr:
+        return []
+    names = [Path(p).stem for p in doc["fit"]["recordings"]]
+    return [_save(igr_figure(igr, names), Path(directory) / "igr.png")]
+
+
 def plot_posterior(
     post: Posterior,
     directory: str | Path,
