@@ -38,6 +38,11 @@ RECIPES: dict[str, tuple[str, float]] = {
     ),
     "campaign.json": ("python benchmarks/campaign_throughput.py", 6),
     "startup.json": ("python benchmarks/startup.py --json benchmarks/results/startup.json", 1),
+    "identify_time.json": (
+        "python benchmarks/identify_time.py --json benchmarks/results/identify_time.json "
+        "--cache-json benchmarks/results/compile_cache.json",
+        4,
+    ),
     "diagnose_time.json": (
         "python benchmarks/diagnose_time.py --json benchmarks/results/diagnose_time.json",
         8,
@@ -98,8 +103,7 @@ BY_HAND: dict[str, str] = {
     "jacobian.json": "python benchmarks/run.py (its Jacobian lines)",
     "memory.json": "python benchmarks/run.py --identify --posterior; --quick --diagnose",
     "posterior.json": "python benchmarks/run.py --identify --posterior",
-    "identify_time.json": "RATTLEFIT_CACHE_DIR=off rattlefit identify <shared 3 s file>",
-    "compile_cache.json": "rattlefit identify <file> twice, then with RATTLEFIT_CACHE_DIR=off",
+    "compile_cache.json": "written with identify_time.json (its recipe)",
     "ci_time.json": ".ci/run on a fresh clone, timed",
     "isa_cost.json": "python benchmarks/isa_cost.py",
     "slow_tests.json": "RATTLEFIT_SLOW=1 python -m pytest -n 2 tests/test_fit.py",
