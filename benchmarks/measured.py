@@ -88,7 +88,7 @@ def _scripts_of(words: list[str], root: Path):
     if program in (".ci/run", "bash") and (program == ".ci/run" or args[:1] == [".ci/run"]):
         return [], [], [], list(CI_PATHS)
     if program == "rattlefit":
-        return ["src/rattlefit/cli.py"], args, [], []
+        return [_module_file("rattlefit.cli", [root / "src"], root)], args, [], []
     if program == "jupyter":
         notebooks = [a for a in args if a.endswith(".ipynb")]
         return _present(notebooks, root), args, _absent(notebooks, root), []

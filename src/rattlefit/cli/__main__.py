@@ -1,0 +1,5 @@
+"""``python -m rattlefit.cli``: the command line."""
+
+from . import main
+
+main()
