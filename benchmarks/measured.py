@@ -28,7 +28,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 #: Where a top-level name that is not beside its importer is looked for (a script's folder is
 #: put on ``sys.path`` by Python, and tests and studies add these folders themselves).
-SEARCH_DIRS = ("src", "benchmarks", "studies", "studies/second_rig", "tests", ".")
+SEARCH_DIRS = ("src", "benchmarks", "studies", "tests", ".")
 #: What every result's environment pins: the versions of what it imports from outside.
 ENVIRONMENT = ("constraints.txt",)
 #: What ``.ci/run`` runs: the install, the lint and the whole test suite.

@@ -12,9 +12,20 @@ import sys
 import time
 from pathlib import Path
 
-from rattlefit.inference.options import OPTION_NAMES
-from rattlefit.inference.parameters import default_specs
-from rattlefit.testing.results import head_commit, provenance, tree_state, write_result
+#: The repository's root, put on ``sys.path`` so that the studies import the validation data
+#: generators (``validation/``), which are not part of the installed package.
+REPO = Path(__file__).resolve().parents[1]
+if str(REPO) not in sys.path:
+    sys.path.insert(1, str(REPO))
+
+from rattlefit.inference.options import OPTION_NAMES  # noqa: E402
+from rattlefit.inference.parameters import default_specs  # noqa: E402
+from rattlefit.testing.results import (  # noqa: E402
+    head_commit,
+    provenance,
+    tree_state,
+    write_result,
+)
 
 __all__ = [
     "add_set_argument",

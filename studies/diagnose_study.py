@@ -2,9 +2,9 @@
 matrix on recordings with an effect written in another form than the catalogue's.
 
 The cases are the independent simulator's recordings in ``../shared/recordings/`` (with their
-truth), the sets of ``rattlefit.testing.diagnose_sets`` (clean recordings whose model form
+truth), the sets of ``validation.diagnose_sets`` (clean recordings whose model form
 differs from rattlefit's fitted one; recordings with an injected effect of another form), and
-a validation set of the second rig model (``studies/second_rig``, set ``validation``, read
+a validation set of the second rig model (``validation/second_rig``, set ``validation``, read
 from ``--validation-dir``; made once from a seed drawn after its method was committed, and
 scored only by a checkout whose package and scoring equal that method commit, which its
 ``manifest.json`` names; ``--unfrozen`` scores it anyway and labels the result so; the
@@ -49,8 +49,8 @@ import rattlefit as rf
 from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
 from rattlefit.diagnosis.evidence import POINTS_TO, findings
 from rattlefit.report import verdict_sentence
-from rattlefit.testing.diagnose_sets import DISSIPATION, clean_set, injected_set
 from rattlefit.testing.shared import recordings_dir
+from validation.diagnose_sets import DISSIPATION, clean_set, injected_set
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = recordings_dir(REPO)
@@ -311,7 +311,7 @@ def result_document(rows: list[dict], cases: list[dict]) -> dict:
         "order": 11.6,
         "what": "full `diagnose` (default options) on recordings rattlefit's fitted model did "
         "not make: the shared independent recordings, the clean calibration set and the "
-        "injected set of rattlefit.testing.diagnose_sets",
+        "injected set of validation.diagnose_sets",
         "summary": (
             f"all {n_cases} cases"
             if len(rows) == n_cases
@@ -347,7 +347,7 @@ def main() -> None:
         "--validation-dir",
         type=Path,
         default=REPO / "studies/cache/validation_v2",
-        help="the second rig's validation set (studies/second_rig/validation_set.py --out)",
+        help="the second rig's validation set (validation.second_rig.validation_set --out)",
     )
     ap.add_argument("--full", action="store_true")
     ap.add_argument("--only", nargs="*")

@@ -15,7 +15,6 @@ import json, os
 import jax
 before = [jax.config.read("jax_enable_x64"), os.environ.get("XLA_FLAGS")]
 import rattlefit, rattlefit.cli, rattlefit.diagnosis, rattlefit.likelihood, rattlefit.report
-import rattlefit.testing.diagnose_sets
 from jax._src import xla_bridge
 after = [jax.config.read("jax_enable_x64"), os.environ.get("XLA_FLAGS")]
 started = xla_bridge.backends_are_initialized()

@@ -1,4 +1,4 @@
-"""The calibration sets of rattlefit.testing.diagnose_sets: their recordings read back, their
+"""The calibration sets of validation.diagnose_sets: their recordings read back, their
 injected effects follow their formulas, and the sets are the same each time they are listed.
 
 Nothing here builds a whole set: single recordings of 0.5 s are built into a temporary
@@ -15,7 +15,7 @@ import pytest
 
 import rattlefit as rf
 from rattlefit.physics.oil import dynamic_viscosity
-from rattlefit.testing import diagnose_sets as ds
+from validation import diagnose_sets as ds
 
 SHORT = 0.5  # s: the recordings built here
 

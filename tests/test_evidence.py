@@ -2,7 +2,7 @@
 
 References the code did not produce: the injected run-out of a simulated recording (its
 size and wheel), the independent shared recordings with their truth, and the second rig
-model of studies/second_rig with its stated effects.
+model of validation/second_rig with its stated effects.
 """
 
 import json
@@ -259,18 +259,15 @@ def test_the_drive_ripple_candidate_takes_the_order_its_test_found(boundary_pair
 
 
 def test_motor_cogging_at_order_24_from_the_second_rig_is_found_and_named():
-    # The second rig (studies/second_rig, another simulator) with its servo's cogging torque
+    # The second rig (validation/second_rig, another simulator) with its servo's cogging torque
     # at order 24 of the motor's rotation inside the speed loop, at 14 Hz (where order 24 is
     # no drive harmonic): the drive-order test finds order 24 at about the acceleration the
     # rig states, the verdict names a drive ripple and its candidate is fitted at order 24
     # (clean recordings' silence is the shared recordings' and the smooth drive's tests).
-    import sys
 
     from rattlefit.diagnosis.evidence import candidate_static
     from rattlefit.diagnosis.verdict import Evidence, decide
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "studies" / "second_rig"))
-    import validation_set
+    from validation.second_rig import validation_set
 
     drawn = validation_set.draw(next(c for c in validation_set.plan() if c.kinds == ("ripple",)))
     at = 14.0

@@ -17,7 +17,7 @@ from rattlefit.diagnosis.null import COVERED_P, null_p, rejudged, with_simulated
 from rattlefit.diagnosis.verdict import Evidence, decide
 from rattlefit.features.orders import AngleTest, drive_order_evidence, tooth_offsets
 from rattlefit.io.recording import OperatingPoint
-from rattlefit.testing.diagnose_sets import DrivenToothNotch
+from validation.diagnose_sets import DrivenToothNotch
 
 MEAN_SPEED = 52.36  # rad/s: the paper's 500 rpm
 #: A short recording keeps the null's 50 simulations within the test suite's time.
@@ -149,7 +149,7 @@ def test_a_notch_on_a_driven_tooth_stands_outside_the_null(locked_point):
 
 
 def test_a_clean_second_rig_recording_whose_locked_rattle_fires_the_runout_test_is_not_named():
-    # The second rig (studies/second_rig, another simulator: torsional chain, servo, load
+    # The second rig (validation/second_rig, another simulator: torsional chain, servo, load
     # sharing, cavitating film, encoder on the far end), clean, pair II with boundary
     # lubrication, its drive fluctuating 18 % once per revolution of the primary (8.33 Hz at
     # 500 rpm): the impacts repeat with the drive and so with the primary's angle, and the
@@ -157,13 +157,8 @@ def test_a_clean_second_rig_recording_whose_locked_rattle_fires_the_runout_test_
     # effects, at the rig's stated values in rattlefit's terms, makes such patterns as large
     # or larger, so no encoder finding is named. Half the diagnosis's null realisations keep
     # the test within the suite's time.
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "studies" / "second_rig"))
-    import validation_set
-
     from rattlefit.physics.geometry import GearGeometry
+    from validation.second_rig import validation_set
 
     case = next(c for c in validation_set.plan(20261210) if c.number == 33)
     drawn = validation_set.draw(case)

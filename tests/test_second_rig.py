@@ -1,26 +1,21 @@
-"""The second rig model (studies/second_rig) against closed forms and the recording contract."""
+"""The second rig model (validation/second_rig) against closed forms and the recording contract."""
 
 from __future__ import annotations
 
 import math
 import re
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy import linalg
 
 from rattlefit.io.recording import check_recording, read_recording, write_recording
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "studies" / "second_rig"))
-
-import validation_set
-from rig_chain import Rig, matrices, natural_frequencies
-from rig_film import flooded_momentum
-from rig_geometry import Pair
-from rig_mesh import MeshLaw
-from rig_solver import Batch, simulate
+from validation.second_rig import validation_set
+from validation.second_rig.rig_chain import Rig, matrices, natural_frequencies
+from validation.second_rig.rig_film import flooded_momentum
+from validation.second_rig.rig_geometry import Pair
+from validation.second_rig.rig_mesh import MeshLaw
+from validation.second_rig.rig_solver import Batch, simulate
 
 PAIR = Pair("II", 65.6e-3)
 K0 = 1.5e8  # a constant mesh stiffness, N/m, where a test needs the mesh linear
@@ -235,6 +230,6 @@ def test_the_set_plan_is_half_clean_and_names_its_verdicts():
     assert {c.lubrication for c in cases} == {"dry", "boundary", "oil_jet"}
     assert {c.pair for c in cases} == {"I", "II"}
     rng = np.random.default_rng(0)
-    effects = [validation_set._effect(k, rng, PAIR) for k in ("flex", "runout_pinion")]
+    effects = [validation_set.drawn_effect(k, rng, PAIR) for k in ("flex", "runout_pinion")]
     assert validation_set.expected(effects) == ["shaft_compliance+runout", "shaft_inertia+runout"]
     assert validation_set.expected(()) == ["none", "unexplained"]

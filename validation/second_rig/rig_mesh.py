@@ -32,7 +32,8 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from rig_geometry import Pair
+
+from .rig_geometry import Pair
 
 #: Rows per base pitch of the tables.
 PER_PITCH = 128

@@ -1,6 +1,6 @@
 """A frozen validation set for ``rattlefit diagnose``, made by a second, different rig model.
 
-    python studies/second_rig/validation_set.py --out DIR [--seed S]
+    python -m validation.second_rig.validation_set --out DIR [--seed S]
 
 writes 48 recordings of 3 s (recording format version 1, through ``rattlefit.io.recording.
 write_recording``), ``truth.json`` and ``manifest.json`` into DIR (default
@@ -45,20 +45,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from rig_chain import Rig, natural_frequencies
-from rig_effects import (
-    FlexibleSecondaryCoupling,
-    HystereticContact,
-    MotorTorqueRipple,
-    OilWarmUp,
-    PittedToothWithBurr,
-    ViscousChurningDrag,
-    WheelEccentricity,
-)
-from rig_film import equivalent_film
-from rig_geometry import OIL, TABLE2, Pair, dynamic_viscosity
-from rig_mesh import MeshLaw
-from rig_solver import STEP, simulate
 from scipy import optimize
 
 from rattlefit.io.recording import (
@@ -69,10 +55,25 @@ from rattlefit.io.recording import (
     write_recording,
 )
 
+from .rig_chain import Rig, natural_frequencies
+from .rig_effects import (
+    FlexibleSecondaryCoupling,
+    HystereticContact,
+    MotorTorqueRipple,
+    OilWarmUp,
+    PittedToothWithBurr,
+    ViscousChurningDrag,
+    WheelEccentricity,
+)
+from .rig_film import equivalent_film
+from .rig_geometry import OIL, TABLE2, Pair, dynamic_viscosity
+from .rig_mesh import MeshLaw
+from .rig_solver import STEP, simulate
+
 #: The set's default seed, and the generator's version (part of the manifest).
 SEED = 7321
 VERSION = "1"
-DEFAULT_OUT = Path("studies/cache/validation_v2")
+DEFAULT_OUT = Path(__file__).resolve().parents[2] / "studies" / "cache" / "validation_v2"
 #: Recorded duration and burn-in, s; the rig's mean speed (500 rpm), rad/s.
 DURATION = 3.0
 BURN_IN = 0.5
@@ -218,7 +219,7 @@ def _structure(rng, pair: Pair, lubrication: str) -> dict:
     )
 
 
-def _effect(kind: str, rng, pair: Pair):
+def drawn_effect(kind: str, rng, pair: Pair):
     """The effect of ``kind`` with sizes drawn from ``rng``."""
     um, turn = 1e-6, 2 * math.pi
     if kind in ("ripple", "ripple4"):
@@ -290,7 +291,7 @@ def draw(case: Case) -> Drawn:
         h_oil=h_oil,
         **values,
     )
-    effects = tuple(_effect(kind, rng, pair) for kind in case.kinds)
+    effects = tuple(drawn_effect(kind, rng, pair) for kind in case.kinds)
     clean = dataclasses.replace(rig, table=mesh.table())
     for e in effects:
         rig = e.apply(rig)
@@ -575,7 +576,7 @@ def build(out: Path, seed: int = SEED, say=print) -> dict:
         say(f"{stray.name}: not part of this set (left alone)")
     same = old_manifest.get("seed") == seed and old_manifest.get("version") == VERSION
     manifest = {
-        "generator": "studies/second_rig/validation_set.py",
+        "generator": "validation/second_rig/validation_set.py",
         "version": VERSION,
         "seed": seed,
         # the method the set is to be scored at: the checkout's when the seed was first drawn

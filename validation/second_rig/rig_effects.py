@@ -37,8 +37,9 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-from rig_chain import Rig
-from rig_mesh import MeshLaw, ToothDefect
+
+from .rig_chain import Rig
+from .rig_mesh import MeshLaw, ToothDefect
 
 #: rattlefit's candidates for dissipation in contact.
 DISSIPATION = ("flank_friction", "mesh_damping", "pitch_point_friction")

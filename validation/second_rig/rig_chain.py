@@ -27,9 +27,10 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from rig_geometry import Pair, dynamic_viscosity
-from rig_mesh import MeshLaw
 from scipy import linalg
+
+from .rig_geometry import Pair, dynamic_viscosity
+from .rig_mesh import MeshLaw
 
 #: The paper's motor: maximum output torque, N m.
 TORQUE_LIMIT = 2.2

@@ -24,8 +24,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from rig_chain import Rig
-from rig_mesh import PER_PITCH
+
+from .rig_chain import Rig
+from .rig_mesh import PER_PITCH
 
 #: Integration step, s, and steps per encoder sample (10 kHz).
 STEP = 5e-6

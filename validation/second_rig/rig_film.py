@@ -36,8 +36,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from rig_geometry import Pair
 from scipy import integrate, optimize
+
+from .rig_geometry import Pair
 
 SQRT2 = math.sqrt(2.0)
 #: rattlefit's default h_min (pitch circle), m: where its squeeze momentum is stated.

@@ -2,7 +2,7 @@
 
 Two sets of 3 s recordings in the recording format (version 1), built deterministically from
 fixed seeds and cached under ``$RATTLEFIT_DIAGNOSE_SETS/<set>/`` (default
-``studies/cache/diagnose_sets`` from the working directory) with a ``truth.json`` beside them:
+``studies/cache/diagnose_sets`` of the repository) with a ``truth.json`` beside them:
 
 * ``clean`` — no effect outside the seed paper's model, but a model form that differs from
   rattlefit's fitted smoothed model in the small ways a real rig's does: half are made by the
@@ -56,19 +56,23 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..config import configure
-from ..io.recording import OperatingPoint, write_recording
-from ..physics.drive import Drive
-from ..physics.effects import EFFECTS, mechanism_of
-from ..physics.geometry import DEFAULT_STIFFNESS_SHAPE, GearGeometry, table2_pair
-from ..physics.model import DEFAULT_MIN_FILM, Effect, RattleModel, RattleParams
-from ..physics.oil import KELVIN, dynamic_viscosity, walther_coefficients
-from ..simulation.reference import simulate_reference
-from ..simulation.synthetic import PAPER_OIL, recording_from_trajectory, synthesize
-from .shared import recordings_dir
+from rattlefit.config import configure
+from rattlefit.io.recording import OperatingPoint, write_recording
+from rattlefit.physics.drive import Drive
+from rattlefit.physics.effects import EFFECTS, mechanism_of
+from rattlefit.physics.geometry import DEFAULT_STIFFNESS_SHAPE, GearGeometry, table2_pair
+from rattlefit.physics.model import DEFAULT_MIN_FILM, Effect, RattleModel, RattleParams
+from rattlefit.physics.oil import KELVIN, dynamic_viscosity, walther_coefficients
+from rattlefit.simulation.reference import simulate_reference
+from rattlefit.simulation.synthetic import PAPER_OIL, recording_from_trajectory, synthesize
+from rattlefit.testing.shared import recordings_dir
 
 #: Where the sets are built (``$RATTLEFIT_DIAGNOSE_SETS``, else under the working directory).
-CACHE = Path(os.environ.get("RATTLEFIT_DIAGNOSE_SETS", "studies/cache/diagnose_sets"))
+#: The repository's root (this package lies in its ``validation/`` folder).
+REPO = Path(__file__).resolve().parents[1]
+CACHE = Path(
+    os.environ.get("RATTLEFIT_DIAGNOSE_SETS", REPO / "studies" / "cache" / "diagnose_sets")
+)
 SETS = ("clean", "injected")
 
 #: Recorded duration, s (after the 0.5 s burn-in of both solvers).
@@ -1025,12 +1029,12 @@ def build_set(which: str, *, jobs: int = 1, say=None) -> list[tuple[Path, dict]]
 def shared_clean() -> list[tuple[Path, dict]]:
     """The shared 3 s recordings without an unmodelled effect (not ``long/``), with their
     truth, ``expected`` and ``form``."""
-    path = recordings_dir() / "truth.json"
+    path = recordings_dir(REPO) / "truth.json"
     if not path.is_file():
         return []
     out = []
     for name, entry in json.loads(path.read_text()).items():
-        file = recordings_dir() / f"{name}.h5"
+        file = recordings_dir(REPO) / f"{name}.h5"
         if entry["unmodelled_effects"] or not file.is_file():
             continue
         form = "the independent simulator's recording (../shared/recordings)"
