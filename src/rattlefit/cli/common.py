@@ -229,3 +229,18 @@ def priors_of(texts) -> dict:
             raise click.BadParameter(str(exc), param_hint="--prior") from None
         priors[name] = spec
     return priors
+
+
+def saved_fit(path: Path, recordings, command: str):
+    """The fit ``identify -o`` wrote to ``path``, of ``recordings`` (matched by their counts),
+    for ``command`` to start from; a fit on the learned likelihood is refused for ``sample``,
+    whose chain needs the likelihood itself (identify in the same run, or reuse it)."""
+    from ..inference.fit_document import read_fit
+
+    fit = read_fit(path, recordings)
+    if command == "sample" and fit.provenance.likelihood.get("method") == "learned":
+        raise RattlefitError(
+            f"{path}: fit/likelihood: a fit on the learned likelihood; sample these files with "
+            "--reuse-likelihood (its .likelihood.h5) instead of --fit"
+        )
+    return fit

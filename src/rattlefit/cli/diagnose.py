@@ -17,6 +17,7 @@ from .common import (
     progress_printer,
     quick_start_option,
     report_option,
+    saved_fit,
     seed_option,
     write_report_file,
 )
@@ -48,6 +49,12 @@ from .common import (
 @likelihood_options
 @output_options("the diagnosis", "the band residuals with and without each effect")
 @report_option("the diagnosis and the identification it starts from")
+@click.option(
+    "--fit",
+    "fit_file",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="identify's JSON (-o) of these files: start from it instead of identifying again.",
+)
 @prior_option
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
 @clean_errors
@@ -63,6 +70,7 @@ def diagnose(
     output,
     plot_dir,
     report_file,
+    fit_file,
     priors,
     quiet,
 ):
@@ -91,7 +99,8 @@ def diagnose(
     options = DiagnoseOptions(
         effects=names, fit=fit_options, iterations=iterations, every_effect=every_effect
     )
-    diag = run(recordings, options, progress=progress_printer(quiet))
+    baseline = None if fit_file is None else saved_fit(fit_file, recordings, "diagnose")
+    diag = run(recordings, options, baseline=baseline, progress=progress_printer(quiet))
     emit(
         format_diagnosis(diag),
         diagnosis_document(diag),

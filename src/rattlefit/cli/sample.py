@@ -17,6 +17,7 @@ from .common import (
     progress_printer,
     quick_start_option,
     report_option,
+    saved_fit,
     seed_option,
     write_report_file,
 )
@@ -57,8 +58,9 @@ from .common import (
     "--fit",
     "fit_file",
     type=click.Path(dir_okay=False, path_type=Path),
-    help="identify's JSON (-o) for the --report of a continued chain, whose file does not hold "
-    "the identification; a new chain's report uses the one it starts from.",
+    help="identify's JSON (-o) of these files: a new chain starts from it instead of "
+    "identifying again (a fit on the synthetic likelihood); a continued chain's --report shows "
+    "it.",
 )
 @prior_option
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
@@ -105,12 +107,6 @@ def sample(
                 param_hint="--report",
             )
         fit_doc = load_json(fit_file, "fit")  # checked before the chain runs
-    elif fit_file is not None:
-        click.echo(
-            "note: --fit is used only for the report of a continued chain; this new chain's "
-            "report shows the identification it starts from",
-            err=True,
-        )
     fit_options = (FitOptions.quick if quick_fit else FitOptions)(
         seed=seed, priors=priors_of(priors), **likelihood_keywords(likelihood, reuse)
     )
@@ -118,7 +114,9 @@ def sample(
         n_walkers=walkers, n_steps=steps, discard=discard, seed=seed, fit=fit_options
     )
     fit = None
-    if not continued:  # identified here, as sample() would, so that the report can show it
+    if not continued and fit_file is not None:
+        fit = saved_fit(fit_file, recordings, "sample")
+    elif not continued:  # identified here, as sample() would, so that the report can show it
         fit = identify(recordings, fit_options, progress=progress_printer(quiet))
     post = run(recordings, fit, options, backend=backend, progress=progress_printer(quiet))
     emit(

@@ -11,6 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 from scipy import stats
 
+from ..io.recording import counts_sha256
 from ..physics.model import RattleParams
 from .advice import what_would_pin
 from .noise import NoiseModel
@@ -176,6 +177,8 @@ class Provenance:
     wall_time : seconds the fit took.
     platform : what a seeded result depends on besides its inputs
         (:func:`~rattlefit.reproducibility.platform_info`), captured when the fit ran.
+    recordings_sha256 : each recording's counts' SHA-256
+        (:func:`~rattlefit.io.recording.counts_sha256`): what a fit read back is matched by.
     likelihood : with ``FitOptions(likelihood="learned")``, how the likelihood was learned
         (simulations, rounds, their wall times and rate) and its check against fresh
         simulations (:mod:`rattlefit.likelihood.check`); empty otherwise.
@@ -186,6 +189,7 @@ class Provenance:
     wall_time: float
     platform: dict = dataclasses.field(default_factory=dict, compare=False)
     likelihood: dict = dataclasses.field(default_factory=dict)
+    recordings_sha256: list[str] = dataclasses.field(default_factory=list)
 
     @property
     def recording_names(self) -> list[str]:
@@ -251,10 +255,15 @@ class FitResult:
         return self.state.problem_for(recordings, self.spectra.sigma)
 
     def to_json(self) -> dict:
-        """The ``--output`` document: parameters (SI), fit diagnostics and the spectra
-        (log10 band PSDs of Δθ*, rad²/Hz, per recording: measured, fitted mean, σ)."""
+        """The ``--output`` document (format :data:`FIT_FORMAT`, version :data:`FIT_VERSION`):
+        parameters (SI), fit diagnostics, the spectra (log10 band PSDs of Δθ*, rad²/Hz, per
+        recording: measured, fitted mean, σ) and the state sampling and diagnosis start from
+        (:func:`state_document`; read back by
+        :func:`rattlefit.inference.fit_document.read_fit`)."""
         est, st, sp, pr = self.estimates, self.statistics, self.spectra, self.provenance
         return {
+            "format": FIT_FORMAT,
+            "version": FIT_VERSION,
             "parameters": {k: v.as_dict() for k, v in est.parameters.items()},
             "fit": {
                 "chi2": st.chi2,
@@ -285,6 +294,7 @@ class FitResult:
                 "fitted": [sp.bands_of(f) for f in sp.fitted],
                 "sigma": [sp.bands_of(s) for s in sp.sigma],
             },
+            "state": state_document(self),
         }
 
 
@@ -303,6 +313,34 @@ def below_optimum(profiles: dict) -> dict | None:
         return None
     low, name = min(lows)
     return {"depth": float(-low), "parameter": name}
+
+
+#: The fit document's format tag and version.
+FIT_FORMAT, FIT_VERSION = "rattlefit.fit", 1
+#: The noise model's arrays as the document stores them (:class:`NoiseModel`'s fields).
+NOISE_ARRAYS = ("sigma", "whiten", "row_scale", "chi2_recordings")
+
+
+def state_document(result: FitResult) -> dict | None:
+    """The document's ``state``: what :func:`read_fit` needs to restore
+    :attr:`FitResult.state`; None without a noise model (nothing to start from)."""
+    st = result.state
+    if st.noise is None:
+        return None
+    noise = {k: np.asarray(getattr(st.noise, k)).tolist() for k in NOISE_ARRAYS}
+    noise["sigma_dof"] = int(st.noise.sigma_dof)
+    share = st.noise.regime_share
+    noise["regime_share"] = None if share is None else np.asarray(share).tolist()
+    return {
+        "z": np.asarray(st.z, dtype=float).tolist(),
+        "covariance_z": np.asarray(st.covariance_z, dtype=float).tolist(),
+        "noise": noise,
+        "features": [np.asarray(f, dtype=float).tolist() for f in result.spectra.measured],
+        "fitted_features": [np.asarray(f, dtype=float).tolist() for f in result.spectra.fitted],
+        "sigma_features": [np.asarray(f, dtype=float).tolist() for f in result.spectra.sigma],
+        "map_params": result.estimates.map_params,
+        "recordings_sha256": result.provenance.recordings_sha256,
+    }
 
 
 def map_params_of(problem: Problem, z) -> list[dict[str, float]]:
@@ -335,6 +373,7 @@ def provenance_of(rigs, options: FitOptions, wall: float, platform: dict, likeli
         wall_time=wall,
         platform=platform,
         likelihood=likelihood or {},
+        recordings_sha256=[counts_sha256(r.recording) for r in rigs],
     )
 
 

@@ -11,6 +11,7 @@ re-exported here.
 
 from __future__ import annotations
 
+import hashlib
 import math
 import os
 from collections.abc import Mapping
@@ -46,6 +47,7 @@ __all__ = [
     "OperatingPoint",
     "Recording",
     "check_recording",
+    "counts_sha256",
     "inspect_warnings",
     "max_count_jump",
     "read_provenance",
@@ -375,6 +377,14 @@ def recording_of(
         title=values["/"].get("title", ""),
         path=path,
     )
+
+
+def counts_sha256(recording: Recording) -> str:
+    """SHA-256 of the two count streams (little-endian int64): which recording a result was
+    computed from, independent of the file's name, place and HDF5 layout."""
+    h = hashlib.sha256(np.asarray(recording.primary).astype("<i8").tobytes())
+    h.update(np.asarray(recording.secondary).astype("<i8").tobytes())
+    return h.hexdigest()
 
 
 #: The optional group in which an imported recording keeps where it came from
