@@ -156,7 +156,20 @@ def test_identify_writes_json_and_plots(tmp_path):
     assert doc["fit"]["seed"] == 0
     pngs = sorted(x.name for x in plots.iterdir())
     assert "correlation.png" in pngs and any(x.startswith("fit_0_") for x in pngs)
+    assert {"profiles.png", "igr.png"} <= set(pngs)  # every figure the report has
     assert not list(tmp_path.glob("**/*.tmp"))
+    # this fit's profile figure: a cost axis from zero, the printed interval shaded
+    from rattlefit.report.plots import profile_figure
+
+    threshold = doc["fit"]["profile"]["threshold"]
+    fig = profile_figure(doc["fit"]["profiles"], threshold, doc["parameters"])
+    for ax, name in zip(fig.axes, doc["fit"]["profiles"], strict=True):
+        p, scale = doc["parameters"][name], 1e3 if name == "film_half_length" else 1.0
+        (line,) = [x for x in ax.get_lines() if x.get_label() == "profile"]
+        assert min(line.get_ydata()) >= 0 and ax.get_ylim()[0] >= 0
+        (span,) = ax.patches
+        assert span.get_x() + span.get_width() == pytest.approx(p["upper"] * scale)
+        assert span.get_x() == pytest.approx(max(p["lower"] * scale, ax.get_xlim()[0]))
 
 
 def test_identify_bad_file_is_one_clean_error(tmp_path):

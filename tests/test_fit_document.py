@@ -55,7 +55,10 @@ def test_a_saved_fit_holds_the_state_to_the_last_bit(fitted):
 
 def test_a_diagnosis_from_the_saved_fit_is_the_one_from_the_fit_in_memory(fitted):
     rec, result, path = fitted
-    options = DiagnoseOptions(effects=("flank_friction",), iterations=1, null_realisations=0)
+    options = DiagnoseOptions(
+        effects=("flank_friction",), iterations=1, base_iterations=2, n_final=8,
+        null_realisations=0,
+    )  # fmt: skip
     docs = [
         diagnosis_document(diagnose([rec], options, baseline=baseline))
         for baseline in (result, read_fit(path, [rec]))
