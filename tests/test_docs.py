@@ -43,12 +43,9 @@ def test_the_results_tables_match_the_result_files():
 
 
 def _remeasure():
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    try:
-        import readme_table
-        import remeasure
-    finally:
-        sys.path.remove(str(ROOT / "benchmarks"))
+    import readme_table
+    import remeasure
+
     return readme_table, remeasure
 
 

@@ -5,7 +5,6 @@ mid-run leaves a stale figure looking current. Each case runs in a temporary clo
 from __future__ import annotations
 
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -15,12 +14,9 @@ FORWARD = "python benchmarks/run.py --write-results --json benchmarks/results/ra
 
 
 def _modules():
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    try:
-        import measured
-        import readme_table
-    finally:
-        sys.path.remove(str(ROOT / "benchmarks"))
+    import measured
+    import readme_table
+
     return measured, readme_table
 
 
@@ -126,11 +122,8 @@ def test_a_result_written_from_a_dirty_tree_or_across_a_commit_is_stale(clone):
 
 
 def _diagnose_study():
-    sys.path.insert(0, str(ROOT / "studies"))
-    try:
-        import diagnose_study
-    finally:
-        sys.path.remove(str(ROOT / "studies"))
+    import diagnose_study
+
     return diagnose_study
 
 
