@@ -5,6 +5,7 @@ mid-run leaves a stale figure looking current. Each case runs in a temporary clo
 from __future__ import annotations
 
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -122,8 +123,12 @@ def test_a_result_written_from_a_dirty_tree_or_across_a_commit_is_stale(clone):
 
 
 def _diagnose_study():
-    import diagnose_study
-
+    # studies/ names its modules plainly (common, coverage): on sys.path only for this import
+    sys.path.insert(0, str(ROOT / "studies"))
+    try:
+        import diagnose_study
+    finally:
+        sys.path.remove(str(ROOT / "studies"))
     return diagnose_study
 
 
