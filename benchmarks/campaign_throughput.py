@@ -196,7 +196,7 @@ def main() -> None:
         del r["records"]
     doc = {
         "order": 6,
-        "headline": False,
+        "headline": True,
         "what": "`rattlefit campaign` throughput against dask workers (one core each), and "
         "the client's single-process steps against the campaign's size",
         "summary": f"{speedup:.2f}× the identifications' throughput on {max(counts)} workers "

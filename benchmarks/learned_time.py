@@ -89,6 +89,7 @@ def main() -> None:
     )
     doc = {
         "order": 4.5,
+        "headline": True,
         "what": "the learned likelihood's cost: `identify --likelihood learned` cold and reusing "
         "its stored likelihood, and `sample` on it, against the synthetic `identify` of the same "
         "file in the same run",
