@@ -85,7 +85,7 @@ def _scripts_of(words: list[str], root: Path):
     if not words:
         return [], [], [], []
     program, args = words[0], words[1:]
-    if program in (".ci/run", "bash") and (program == ".ci/run" or args[:1] == [".ci/run"]):
+    if words[:1] == [".ci/run"] or words[:2] == ["bash", ".ci/run"]:
         return [], [], [], list(CI_PATHS)
     if program == "rattlefit":
         return [_module_file("rattlefit.cli", [root / "src"], root)], args, [], []

@@ -106,45 +106,41 @@ def delimited_columns(
     body = [(k, r) for k, r in enumerate(rows[start:], start + 1) if any(r)]
     if len(body) < 2:
         raise RecordingError(path, "/", "needs a header line and at least two samples")
-    out = []
-    for name, c in zip(wanted, columns, strict=True):
-        out.append(_column(body, c, name, mark, path, exact=name == time))
-    rate = None
-    if time:
-        rate = _rate(out.pop(), path, time)
-    return out, rate
+    texts = [_cells(body, c, name, mark, path) for name, c in zip(wanted, columns, strict=True)]
+    rate = _rate(*_seconds(texts.pop()), path, time) if time else None
+    return [np.array([float(t) for t in column]) for column in texts], rate
 
 
 def _is_number(cell: str, mark: str) -> bool:
     return bool(NUMBER.match(cell)) and (mark == "," or "," not in cell)
 
 
-def _column(body, c: int, name: str, mark: str, path: str, exact: bool):
-    """One column's values: floats, or (``exact``) decimals relative to the first."""
-    values = []
+def _cells(body, c: int, name: str, mark: str, path: str) -> list[str]:
+    """Column ``c``'s cells as numbers' text with a decimal point; raises naming the line of
+    the first that is no number."""
+    out = []
     for line, row in body:
         cell = row[c] if c < len(row) else ""
         if not _is_number(cell, mark):
             raise RecordingError(
                 path, name, f"line {line} has {cell!r}, not a number (decimal mark {mark!r})"
             )
-        text = cell.replace(",", ".") if mark == "," else cell
-        values.append(decimal.Decimal(text) if exact else float(text))
-    if exact:
-        first = values[0]
-        return np.array([float(v - first) for v in values]), _resolution(values)
-    return np.array(values)
+        out.append(cell.replace(",", ".") if mark == "," else cell)
+    return out
 
 
-def _resolution(values) -> float:
-    """The time column's printed resolution (s): 10^exponent of its least significant digit."""
-    return float(10 ** min(v.as_tuple().exponent for v in values[:1000]))
+def _seconds(texts: list[str]) -> tuple[np.ndarray, float]:
+    """A time column relative to its first value, in decimal arithmetic (absolute LabView
+    timestamps keep their microseconds), and its printed resolution (s): 10^exponent of its
+    least significant digit."""
+    values = [decimal.Decimal(t) for t in texts]
+    resolution = float(10 ** min(v.as_tuple().exponent for v in values[:1000]))
+    return np.array([float(v - values[0]) for v in values]), resolution
 
 
-def _rate(column, path: str, name: str) -> float:
-    """The sample rate of a time column (seconds from its first value, its printed
-    resolution): its steps must agree within twice that resolution."""
-    t, resolution = column
+def _rate(t: np.ndarray, resolution: float, path: str, name: str) -> float:
+    """The sample rate of a time column ``t`` (seconds from its first value) printed to
+    ``resolution``: its steps must agree within twice that resolution."""
     step = np.diff(t)
     mean = (t[-1] - t[0]) / (len(t) - 1)
     if np.any(step <= 0) or np.ptp(step) > 2 * resolution + 1e-9 * mean:

@@ -146,10 +146,10 @@ def plot_fit(
     fig.colorbar(im, ax=ax, label="correlation")
     ax.set_title("parameter correlations (Laplace)")
     out.append(_save(fig, directory / "correlation.png"))
-    doc = result.to_json()
-    if doc["fit"].get("profiles"):
-        threshold = doc["fit"].get("profile", {}).get("threshold")
-        fig = profile_figure(doc["fit"]["profiles"], threshold, doc["parameters"])
+    est = result.estimates
+    if est.profiles:
+        rows = {k: p.as_dict() for k, p in est.parameters.items()}
+        fig = profile_figure(est.profiles, est.profile.get("threshold"), rows)
         out.append(_save(fig, directory / "profiles.png"))
     return out
 
