@@ -52,6 +52,7 @@ from rattlefit.io.recording import (
     OilSpec,
     OperatingPoint,
     Recording,
+    counts_sha256,
     write_recording,
 )
 
@@ -498,13 +499,6 @@ def sha256(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def content_sha256(rec: Recording) -> str:
-    """SHA-256 of the two count streams (little-endian int64), independent of HDF5 layout."""
-    h = hashlib.sha256(rec.primary.astype("<i8").tobytes())
-    h.update(rec.secondary.astype("<i8").tobytes())
-    return h.hexdigest()
-
-
 # --- the set -------------------------------------------------------------------------------
 
 
@@ -566,7 +560,7 @@ def build(out: Path, seed: int = SEED, say=print) -> dict:
         recs, traj = simulate_cases(todo, say=say)
         for i, (d, rec) in enumerate(zip(todo, recs, strict=True)):
             path = write_recording(rec, out / f"{name_of(d)}.h5")
-            files[path.name] = {"sha256": sha256(path), "counts_sha256": content_sha256(rec)}
+            files[path.name] = {"sha256": sha256(path), "counts_sha256": counts_sha256(rec)}
             say(
                 f"[{i + 1}/{len(todo)}] {path.name}: built in {traj.seconds / len(todo):.1f} s "
                 f"(its share of a {time.perf_counter() - t0:.0f} s batch of {len(todo)})"
