@@ -42,7 +42,7 @@ from rattlefit.campaign import (
 from rattlefit.campaign.manifest import Manifest, Unit
 from rattlefit.campaign.schedule import Store, finish, plan
 from rattlefit.campaign.synthetic import PAPER_CENTER_DISTANCES
-from rattlefit.inference.options import FitOptions
+from rattlefit.problem.options import FitOptions
 from rattlefit.testing.results import provenance, write_result
 
 ROOT = Path(__file__).resolve().parents[1]

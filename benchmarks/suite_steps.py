@@ -487,8 +487,8 @@ def guarded(step):
 def timed_identify(file: str):
     """(recording, identify([recording], FitOptions()) result, wall time with compilation)."""
     from rattlefit.inference.identify import identify
-    from rattlefit.inference.options import FitOptions
     from rattlefit.io.recording import read_recording
+    from rattlefit.problem.options import FitOptions
 
     rec = read_recording(recordings_dir() / file)
     t0 = time.perf_counter()
@@ -523,8 +523,8 @@ def step_identify(args):
 @guarded
 def step_posterior(args):
     """identify() then sample() of the same 3-s recording: wall times, ESS, ESS per second."""
-    from rattlefit.inference.options import FitOptions
     from rattlefit.inference.posterior import SampleOptions, sample
+    from rattlefit.problem.options import FitOptions
 
     rec, fit, t_fit = timed_identify(args["file"])
     t0 = time.perf_counter()

@@ -18,8 +18,8 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(1, str(REPO))
 
-from rattlefit.inference.options import OPTION_NAMES  # noqa: E402
-from rattlefit.inference.parameters import default_specs  # noqa: E402
+from rattlefit.problem.options import OPTION_NAMES  # noqa: E402
+from rattlefit.problem.parameters import default_specs  # noqa: E402
 from rattlefit.testing.results import (  # noqa: E402
     head_commit,
     provenance,
@@ -55,7 +55,7 @@ def add_set_argument(ap: argparse.ArgumentParser) -> None:
 
 def set_overrides(ap: argparse.ArgumentParser, items: list[str]) -> dict:
     """The ``FitOptions`` options named by ``--set`` items (flat names,
-    :data:`~rattlefit.inference.options.OPTION_NAMES`), their values read as JSON; a bad item
+    :data:`~rattlefit.problem.options.OPTION_NAMES`), their values read as JSON; a bad item
     ends the script through ``ap.error``."""
     fields = set(OPTION_NAMES) - {"priors"}
     overrides = {}

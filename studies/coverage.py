@@ -35,10 +35,10 @@ from common import add_set_argument, provenance, set_overrides, write_result
 
 import rattlefit as rf
 from rattlefit.inference.identify import identify
-from rattlefit.inference.options import FitOptions
-from rattlefit.inference.parameters import film_names, parse_prior
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.physics.oil import dynamic_viscosity
+from rattlefit.problem.options import FitOptions
+from rattlefit.problem.parameters import film_names, parse_prior
 from rattlefit.simulation.synthetic import synthesize
 
 LUBRICATION = {"dry": (0.0, 20.0), "boundary": (0.085e-3, 20.0), "oil_jet": (1.0e-3, 25.0)}
@@ -85,7 +85,7 @@ def parse_args() -> tuple[argparse.Namespace, dict]:
         action="append",
         default=[],
         metavar="NAME=CENTER:LOG_SD",
-        help="replace a nuisance's prior (rattlefit.inference.parameters.parse_prior), e.g. "
+        help="replace a nuisance's prior (rattlefit.problem.parameters.parse_prior), e.g. "
         "min_film=2e-6:0.1",
     )
     args = ap.parse_args()

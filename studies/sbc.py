@@ -30,9 +30,7 @@ from common import tree_state, write_result
 from scipy import stats
 
 import rattlefit as rf
-from rattlefit.inference.options import FitOptions
 from rattlefit.inference.posterior import LearnedLogPosterior, run_chain
-from rattlefit.inference.problem import Problem, problem_from
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.likelihood import LearningOptions, learn_likelihood
 from rattlefit.likelihood.design import EDGE, simulate_design, unit_of_z, z_of_unit
@@ -41,6 +39,8 @@ from rattlefit.likelihood.learn import best_points
 from rattlefit.likelihood.store import read_learned, test_point_key, write_learned
 from rattlefit.physics.model import squeeze_momentum
 from rattlefit.physics.oil import dynamic_viscosity
+from rattlefit.problem.options import FitOptions
+from rattlefit.problem.problem import Problem, problem_from
 from rattlefit.simulation.synthetic import synthesize
 
 #: The operating points: (pair, lubrication, centre distance mm, fluctuation %, frequency Hz,

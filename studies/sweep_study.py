@@ -39,7 +39,7 @@ from common import add_set_argument, set_overrides, write_result
 
 import rattlefit as rf
 from rattlefit.inference.identify import identify
-from rattlefit.inference.options import FitOptions
+from rattlefit.problem.options import FitOptions
 from rattlefit.simulation.synthetic import backlash_sweep
 
 SHARED = ("film_half_length", "drag_torque", "viscosity")

@@ -133,7 +133,7 @@ def compute_stable() -> dict:
     """The outputs pinned within rounding, keyed ``<kind>/<name>`` (kinds: the keys of
     :data:`TOLERANCES`), each a list of floats."""
     from rattlefit import FitOptions, RattleParams, read_recording, rig, simulate, simulate_batch
-    from rattlefit.inference.problem import problem_from
+    from rattlefit.problem.problem import problem_from
     from rattlefit.simulation.solve import broadcast_params
 
     out = {}

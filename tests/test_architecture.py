@@ -82,6 +82,25 @@ def test_no_module_imports_itself_through_others():
     assert cycle is None, " → ".join(cycle)
 
 
+def package_of(module: str) -> str:
+    """``rattlefit.inference.profile.stage`` → ``rattlefit.inference``."""
+    return ".".join(module.split(".")[:2])
+
+
+def test_no_package_imports_itself_through_others():
+    """The packages form layers: no package reaches back into one that imports it (the
+    likelihoods and the inference meet at :mod:`rattlefit.problem`, below both)."""
+    modules = module_names()
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        if name.count(".") == 0:
+            continue
+        deps = {package_of(m) for m in imports_of(name, path, modules) if m.count(".")}
+        graph.setdefault(package_of(name), set()).update(deps - {package_of(name)})
+    cycle = find_cycle(graph)
+    assert cycle is None, " → ".join(cycle)
+
+
 #: Which layers a package may not import: recordings are read without any analysis, the
 #: report only draws (what it shows is computed by the layers below it), and a diagnosis
 #: decides without wording (its words are the report's).
@@ -90,6 +109,10 @@ FORBIDDEN = {
                      "rattlefit.diagnosis", "rattlefit.report", "rattlefit.likelihood"),
     "rattlefit.report": ("rattlefit.simulation",),
     "rattlefit.diagnosis": ("rattlefit.report",),
+    "rattlefit.likelihood": ("rattlefit.inference", "rattlefit.diagnosis", "rattlefit.report",
+                             "rattlefit.campaign", "rattlefit.cli"),
+    "rattlefit.problem": ("rattlefit.likelihood", "rattlefit.inference", "rattlefit.diagnosis",
+                          "rattlefit.report", "rattlefit.campaign", "rattlefit.cli"),
     "rattlefit.rig": ("rattlefit.simulation", "rattlefit.inference", "rattlefit.diagnosis",
                       "rattlefit.report", "rattlefit.likelihood", "rattlefit.campaign"),
 }  # fmt: skip

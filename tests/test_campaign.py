@@ -34,7 +34,7 @@ from rattlefit.campaign.report import write_campaign_report
 from rattlefit.campaign.schedule import plan, stage_keys
 from rattlefit.cli import main
 from rattlefit.errors import RattlefitError
-from rattlefit.inference.options import FitOptions
+from rattlefit.problem.options import FitOptions
 
 #: The campaign: gear pair II, dry, boundary and oil jet, at two centre distances, at the
 #: paper's strongest setting (20 % at 16 Hz), 1 s each; recording i seeded by the i-th child

@@ -18,8 +18,8 @@ import sys
 import numpy as np
 import rattlefit as rf
 rf.configure(compilation_cache=sys.argv[1])
-from rattlefit.inference.forward import evaluate
-from rattlefit.inference.problem import build_problem
+from rattlefit.problem.forward import evaluate
+from rattlefit.problem.problem import build_problem
 rec = rf.read_recording(sys.argv[2])
 problem, _ = build_problem([rec], rf.FitOptions(), np.random.default_rng(0))
 features = evaluate(problem, np.zeros((1, len(problem.specs))))

@@ -30,10 +30,10 @@ from rattlefit.diagnosis.screening import (
 from rattlefit.diagnosis.trial import Trial, candidate_problem, effect_specs, judge_effect
 from rattlefit.diagnosis.verdict import closing, rivals, seen_in_bands
 from rattlefit.errors import RattlefitError
-from rattlefit.inference.parameters import Z_END
-from rattlefit.inference.problem import build_problem
 from rattlefit.io.recording import OperatingPoint, write_recording
 from rattlefit.physics import effects as fx
+from rattlefit.problem.parameters import Z_END
+from rattlefit.problem.problem import build_problem
 from rattlefit.report import verdict_sentence
 
 #: The effects offered in the CI tests: the withheld one and two that could mimic it in the

@@ -242,8 +242,8 @@ def test_the_drive_ripple_candidate_takes_the_order_its_test_found(boundary_pair
 
     from rattlefit.diagnosis.evidence import candidate_static
     from rattlefit.diagnosis.trial import candidate_problem
-    from rattlefit.inference.options import FitOptions
-    from rattlefit.inference.problem import problem_from
+    from rattlefit.problem.options import FitOptions
+    from rattlefit.problem.problem import problem_from
 
     _, clean = boundary_pair2
     counts = clean.primary + np.round(

@@ -19,7 +19,6 @@ import rattlefit as rf
 from rattlefit import FitOptions, identify, read_recording, synthesize
 from rattlefit.features.ensemble import band_sigma, chaotic_part, shrunk_correlation
 from rattlefit.features.folded import PHASE_BINS
-from rattlefit.inference import forward
 from rattlefit.inference.across import (
     combined_starts,
     group_options,
@@ -34,13 +33,14 @@ from rattlefit.inference.least_squares import (
     lm_steps,
 )
 from rattlefit.inference.noise import noise_model
-from rattlefit.inference.parameters import ParameterSpec, parameter_prior
-from rattlefit.inference.problem import build_problem
 from rattlefit.inference.profile import SCREEN_FACTOR, ProfileCosts
 from rattlefit.inference.result import IDENTIFIED_RATIO, estimate
 from rattlefit.inference.starts import START_POINTS, START_RANGES, starting_points
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.physics.oil import dynamic_viscosity
+from rattlefit.problem import forward
+from rattlefit.problem.parameters import ParameterSpec, parameter_prior
+from rattlefit.problem.problem import build_problem
 from rattlefit.simulation.synthetic import PAPER_OIL, backlash_sweep
 
 TARGETS = ("film_half_length", "drag_torque", "viscosity")

@@ -13,14 +13,14 @@ from scipy.integrate import quad
 
 import rattlefit as rf
 from rattlefit.inference.group import group_problem, group_value, to_group
-from rattlefit.inference.options import FitOptions
-from rattlefit.inference.parameters import parameter_prior
-from rattlefit.inference.problem import problem_from
 from rattlefit.physics.model import (
     film_for_squeeze_momentum,
     squeeze_coefficient,
     squeeze_momentum,
 )
+from rattlefit.problem.options import FitOptions
+from rattlefit.problem.parameters import parameter_prior
+from rattlefit.problem.problem import problem_from
 
 BOUNDARY = Path(__file__).resolve().parents[1] / "data" / "pairII_boundary_65.6_20pct_16Hz.h5"
 

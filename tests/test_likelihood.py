@@ -27,9 +27,7 @@ from rattlefit.inference.design import (
 )
 from rattlefit.inference.group import flanks
 from rattlefit.inference.noise import ensemble_features
-from rattlefit.inference.parameters import ParameterSpec
 from rattlefit.inference.posterior import LearnedLogPosterior
-from rattlefit.inference.problem import problem_from
 from rattlefit.io.recording import read_truth
 from rattlefit.likelihood import DensityOptions, LearnedLikelihood, fit_density
 from rattlefit.likelihood.check import FAR_RECORDING
@@ -39,6 +37,8 @@ from rattlefit.likelihood.learn import best_points
 from rattlefit.likelihood.store import read_learned, write_learned
 from rattlefit.likelihood.training import mean_value_and_grad, pairwise_sum
 from rattlefit.physics.model import squeeze_momentum
+from rattlefit.problem.parameters import ParameterSpec
+from rattlefit.problem.problem import problem_from
 
 QUICK = DensityOptions(layers=3, width=32, max_epochs=150, patience=10)
 

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 import rattlefit as rf
-from rattlefit.inference.options import OPTION_NAMES, FitOptions
-from rattlefit.inference.parameters import parameter_prior
 from rattlefit.inference.profile import stage as stage_module
+from rattlefit.problem.options import OPTION_NAMES, FitOptions
+from rattlefit.problem.parameters import parameter_prior
 
 # the module, not the function that rattlefit.inference exports under the same name
 identify_module = importlib.import_module("rattlefit.inference.identify")

@@ -1,4 +1,4 @@
-"""The fitted parameters' coordinates and priors (:mod:`rattlefit.inference.parameters`),
+"""The fitted parameters' coordinates and priors (:mod:`rattlefit.problem.parameters`),
 against closed forms: the map from z is ``lower · (upper/lower)^sigmoid(z)``, its
 log-derivative ``log(upper/lower) · s(1 − s)``, and the priors' rows are log-normal."""
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from rattlefit.errors import RattlefitError
-from rattlefit.inference.parameters import (
+from rattlefit.problem.parameters import (
     NUISANCES,
     Z_END,
     ParameterSpec,
@@ -99,8 +99,11 @@ def test_a_prior_from_the_command_line():
         ("min_film=1000um:0.1", "outside the range"),
         ("min_film=2um:-0.1", "log_sd must be a positive number"),
         ("backlash=0.8mm:0.1", "not a parameter that takes a prior"),
-        ("film_half_length=8.5e-5:0.2", r"is in mm and must say so, e.g\. "
-         r"film_half_length=0\.085mm:0\.2 if 8\.5e-05 was in m"),
+        (
+            "film_half_length=8.5e-5:0.2",
+            r"is in mm and must say so, e.g\. "
+            r"film_half_length=0\.085mm:0\.2 if 8\.5e-05 was in m",
+        ),
         ("drag_torque=0.025mm:0.3", "drag_torque's centre is in N m"),
     ):
         with pytest.raises(RattlefitError, match=problem):

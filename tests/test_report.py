@@ -555,7 +555,7 @@ def test_every_name_and_unit_comes_from_the_one_registry(tmp_path):
     """The table, the JSON, ``--prior``, the profile plots' axes and the report name each
     parameter alike and show it in the registry's unit (h_min in µm, lengths in mm)."""
     import rattlefit as rf
-    from rattlefit.inference.parameters import NUISANCES, parse_prior
+    from rattlefit.problem.parameters import NUISANCES, parse_prior
     from rattlefit.quantities import QUANTITIES, quantity
     from rattlefit.report import html_report
     from rattlefit.report.figures import profile_figure

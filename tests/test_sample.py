@@ -23,9 +23,7 @@ import rattlefit as rf
 from rattlefit import FitOptions, identify, sample, synthesize
 from rattlefit.errors import RattlefitError
 from rattlefit.features.spectra import BandSpec, spectral_features
-from rattlefit.inference.forward import evaluate
 from rattlefit.inference.noise import NoiseModel
-from rattlefit.inference.parameters import ParameterSpec
 from rattlefit.inference.posterior import (
     ChainContext,
     LogPosterior,
@@ -34,8 +32,10 @@ from rattlefit.inference.posterior import (
     run_chain,
     write_context,
 )
-from rattlefit.inference.problem import build_problem
 from rattlefit.io.recording import OperatingPoint, write_recording
+from rattlefit.problem.forward import evaluate
+from rattlefit.problem.parameters import ParameterSpec
+from rattlefit.problem.problem import build_problem
 
 # Seeds: the chains' (emcee's stream), the draws' and the synthetic recording's.
 PRIOR_CHAIN_SEED = 3  # the chain without data

@@ -53,7 +53,7 @@ _LAZY = {
     "squeeze_momentum": ".physics.model",
     "dynamic_viscosity": ".physics.oil",
     "platform_info": ".reproducibility",
-    "use_cpu_cores": ".simulation.parallel",
+    "use_cpu_cores": ".config",
     "Solution": ".simulation.solve",
     "simulate": ".simulation.solve",
     "simulate_batch": ".simulation.solve",

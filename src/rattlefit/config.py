@@ -30,7 +30,6 @@ import jax
 from .compile_cache import use_compilation_cache
 from .errors import RattlefitError
 from .reproducibility import backend_started, cpu_isa, pin_cpu_isa
-from .simulation.parallel import use_cpu_cores
 
 
 @dataclasses.dataclass(frozen=True)
@@ -41,6 +40,33 @@ class Configuration:
     devices: int
     cpu_isa: str
     compilation_cache: Path | None
+
+
+def use_cpu_cores(n: int | None = None) -> int:
+    """Expose ``n`` CPU devices to JAX (default: one per available core).
+
+    Call before any JAX computation (JAX fixes its devices when it first runs something);
+    this call itself does not start JAX. Returns ``n``, or, if JAX had already started (a
+    warning says so), the CPU device count it has. Has no effect on the accelerators JAX uses
+    when it finds a GPU.
+    """
+    if n is None:
+        try:
+            n = len(os.sched_getaffinity(0))
+        except AttributeError:  # pragma: no cover - not on Linux
+            n = os.cpu_count() or 1
+    n = max(int(n), 1)
+    try:
+        jax.config.update("jax_num_cpu_devices", n)
+    except RuntimeError:
+        warnings.warn(
+            "rattlefit.use_cpu_cores: JAX has already started, so its CPU device count is "
+            "fixed; call use_cpu_cores() before any JAX computation to use every core",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+        return len(jax.devices("cpu"))
+    return n
 
 
 def configure(

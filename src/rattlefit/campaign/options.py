@@ -7,8 +7,8 @@ import dataclasses
 import os
 
 from ..errors import RattlefitError
-from ..inference.options import FitOptions
 from ..physics.effects import EFFECTS
+from ..problem.options import FitOptions
 
 
 def _check(ok: bool, message: str) -> None:

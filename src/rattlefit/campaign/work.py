@@ -18,8 +18,8 @@ import numpy as np
 
 from ..config import quietly_configure
 from ..errors import RattlefitError
-from ..inference.options import FitOptions
 from ..physics.geometry import TABLE2
+from ..problem.options import FitOptions
 from ..version import __version__
 from .manifest import Unit
 from .options import CampaignOptions
@@ -147,8 +147,8 @@ def inspect_unit(unit: Unit, fit: FitOptions, learned: bool, env: Environment) -
             out["recordings"].append(describe(rec, path, file_sha256(path)))
             recs.append(rec)
         if learned:
-            from ..inference.problem import problem_from
             from ..likelihood.store import test_point_key
+            from ..problem.problem import problem_from
 
             out["test_point"] = test_point_key(problem_from(recs, fit)[0])
     except Exception as exc:  # reported, and the campaign goes on

@@ -126,7 +126,7 @@ def campaign_run(**o) -> None:
     run's JSON and one HTML report into -o. Exit status 1 when any recording or stage failed
     (the rest are done and written), 2 for a bad manifest."""
     from ..campaign import CampaignOptions, ClusterOptions, run_campaign
-    from ..inference.options import FitOptions
+    from ..problem.options import FitOptions
 
     given = {
         "n_realisations": o["realisations"],

@@ -219,7 +219,7 @@ def write_learned_beside(result, output: Path | None, doc: dict) -> None:
 
 def priors_of(texts) -> dict:
     """``--prior`` values → ``FitOptions.priors``; a bad one is a usage error naming it."""
-    from ..inference.parameters import parse_prior
+    from ..problem.parameters import parse_prior
 
     priors = {}
     for text in texts:

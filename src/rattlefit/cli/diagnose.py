@@ -78,9 +78,9 @@ def diagnose(
     much of the misfit it removes (each effect fitted on top of an identification)."""
     from ..diagnosis.diagnose import DiagnoseOptions
     from ..diagnosis.diagnose import diagnose as run
-    from ..inference.options import FitOptions
     from ..io.recording import read_recording
     from ..physics.effects import DEFAULT_EFFECTS, EFFECTS
+    from ..problem.options import FitOptions
     from ..report import diagnosis_document, format_diagnosis, plot_diagnosis
 
     names = DEFAULT_EFFECTS if effects is None else tuple(e.strip() for e in effects.split(","))

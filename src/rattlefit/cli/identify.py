@@ -108,9 +108,9 @@ def identify(
     """Fit a, T_b and the viscosity to one recording, or jointly to several of one pair
     (e.g. a backlash sweep; under several lubrications each gets its own a[LUBRICATION])."""
     from ..inference.identify import identify as run
-    from ..inference.options import FitOptions
     from ..inference.realisation import fitted_realisations
     from ..io.recording import read_recording
+    from ..problem.options import FitOptions
     from ..report import format_table, plot_fit, plot_igr
 
     recordings = [read_recording(f) for f in files]

@@ -87,10 +87,10 @@ def sample(
     ArviZ's netCDF format beside the chain file (--backend chain.h5 → chain.nc) or, without
     one, beside the JSON (-o post.json → post.nc)."""
     from ..inference.identify import identify
-    from ..inference.options import FitOptions
     from ..inference.posterior import SampleOptions, read_context
     from ..inference.posterior import sample as run
     from ..io.recording import read_recording
+    from ..problem.options import FitOptions
     from ..report import format_posterior, plot_posterior
     from ..report.inputs import load_json
 

@@ -64,12 +64,12 @@ from scipy import stats
 
 from ..errors import RattlefitError
 from ..inference.identify import identify
-from ..inference.options import FitOptions
-from ..inference.parameters import Z_END
-from ..inference.problem import release_states
 from ..inference.result import FitResult
 from ..io.recording import Recording
 from ..physics.effects import DEFAULT_EFFECTS, effect_class
+from ..problem.options import FitOptions
+from ..problem.parameters import Z_END
+from ..problem.problem import release_states
 from ..reproducibility import platform_info
 from ..rig import setup
 from ..util import stamped

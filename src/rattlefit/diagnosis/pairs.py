@@ -18,9 +18,9 @@ import dataclasses
 
 import numpy as np
 
+from ..confidence import Z95_ONE_SIDED
 from .outcome import EffectOutcome
 from .trial import (
-    Z95_ONE_SIDED,
     Trial,
     difference_sd,
     f_test,

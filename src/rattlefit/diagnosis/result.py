@@ -7,8 +7,8 @@ import dataclasses
 import numpy as np
 from scipy import stats
 
-from ..inference.options import unfinished_fit_advice
 from ..inference.result import FitResult
+from ..problem.options import unfinished_fit_advice
 from .cycle_gap import CycleGap
 from .evidence import Finding
 from .outcome import EffectOutcome
@@ -146,7 +146,7 @@ def baseline_warnings(
     or re-fitting a and T_b without effects lowered its cost below :data:`REFIT_WARN_RATIO`
     of it. An effect tried against an unfinished identification can be credited with what
     finishing the fit of the model without effects would gain. ``options``: the
-    identification's (:meth:`~rattlefit.inference.options.FitOptions.to_dict`), for the advice."""
+    identification's (:meth:`~rattlefit.problem.options.FitOptions.to_dict`), for the advice."""
     out = []
     if not converged:
         out.append(

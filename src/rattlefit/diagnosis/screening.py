@@ -12,9 +12,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..inference.parameters import Z_END
-from ..inference.problem import Problem
 from ..physics.effects import effect_class
+from ..problem.parameters import Z_END
+from ..problem.problem import Problem
 from .trial import Trial, costs, validated
 
 #: Where each effect field is screened before the fit: decades below the top of its range

@@ -18,17 +18,17 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from scipy import stats
 
-from ..inference.forward import evaluate
+from ..confidence import Z95_ONE_SIDED
 from ..inference.noise import NoiseModel
-from ..inference.parameters import Z_END, ParameterSpec
-from ..inference.problem import Problem
 from ..inference.profile import polish_profile
 from ..io.recording import Recording
 from ..physics.effects import absent, effect_class
+from ..problem.forward import evaluate
+from ..problem.parameters import Z_END, ParameterSpec
+from ..problem.problem import Problem
 from .outcome import EffectOutcome, gap_closed
 
 #: One-sided 95 % quantile of the standard normal (the χ² drop's Monte Carlo allowance).
-Z95_ONE_SIDED = 1.645
 #: The re-fit without effects stops once two iterations lower its cost by less than this
 #: share (:func:`settled_path`).
 BASE_TOLERANCE = 0.02
@@ -173,7 +173,7 @@ def fresh_features(trial: Trial, zs, y0=None, *, problem: Problem | None = None)
 
 def fresh_means(trial: Trial, zs, y0=None) -> np.ndarray:
     """Mean features (K, R, B) at the points ``zs`` on the fresh release states (or on
-    ``y0``), in the recording's regime (:meth:`~rattlefit.inference.problem.Problem.mean_of`)."""
+    ``y0``), in the recording's regime (:meth:`~rattlefit.problem.problem.Problem.mean_of`)."""
     return np.asarray(trial.problem.mean_of(fresh_features(trial, zs, y0)))
 
 
@@ -307,7 +307,7 @@ def moves(trial: Trial, z_base, z_fit) -> dict[str, tuple[float, float]]:
 
 def effect_specs(name: str) -> tuple[ParameterSpec, ...]:
     """The fitted fields of effect ``name`` as
-    :class:`~rattlefit.inference.parameters.ParameterSpec` objects named ``"<effect>.<field>"`` (no
+    :class:`~rattlefit.problem.parameters.ParameterSpec` objects named ``"<effect>.<field>"`` (no
     prior: log-uniform over the range)."""
     return tuple(
         ParameterSpec(f"{name}.{field}", unit, lo, hi, fd_log_step=0.3)

@@ -1,8 +1,8 @@
 """Inference: from recordings to parameters with honest uncertainty.
 
-- :mod:`.parameters`: the fitted parameters, their coordinates and priors;
-- :mod:`.options`: :class:`FitOptions`;
-- :mod:`.problem`: the problem and its seeded realisations; :mod:`.forward`: the feature map;
+What is fitted (parameters, options, the problem and its feature map) is
+:mod:`rattlefit.problem`; this package searches and measures uncertainty:
+
 - :mod:`.noise`: the noise model (a synthetic likelihood from the simulated ensemble);
 - :mod:`.starts` and :mod:`.least_squares`: the search (Levenberg–Marquardt from many starts);
 - :mod:`.laplace`: the covariance at the optimum; :mod:`.profile`: the profile intervals;
@@ -10,9 +10,9 @@
 - :mod:`.posterior`: the Bayesian posterior by emcee, with a resumable HDF5 chain.
 """
 
+from ..problem.options import FitOptions
 from .identify import identify
 from .noise import NoiseModel
-from .options import FitOptions
 from .posterior import Posterior, SampleOptions, sample
 from .result import (
     Estimates,

@@ -18,10 +18,10 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..io.recording import Recording
+from ..problem.options import FitOptions
+from ..problem.problem import Problem, problem_from
 from ..quantities import FILM
 from .least_squares import refine_starts
-from .options import FitOptions
-from .problem import Problem, problem_from
 from .starts import starting_points
 
 

@@ -28,16 +28,17 @@ from collections.abc import Callable, Sequence
 import jax.numpy as jnp
 import numpy as np
 
+from ..confidence import Z95
 from ..errors import RattlefitError
 from ..features.ensemble import chaotic_part, shrunk_correlation
 from ..io.recording import Recording
 from ..physics.geometry import GearGeometry, backlash_from_center_distance
 from ..physics.model import RattleParams
+from ..problem.forward import evaluate
+from ..problem.options import FitOptions
+from ..problem.problem import build_problem, release_states
 from ..quantities import FILM
 from ..simulation.synthetic import synthesize
-from .forward import evaluate
-from .options import FitOptions
-from .problem import build_problem, release_states
 from .result import FitResult
 
 #: Realisations per point of the information estimate.
@@ -54,7 +55,6 @@ CENTER_STEPS_MM = (-0.6, -0.2, 0.4)
 #: Film half-length assumed for a lubrication the fit has no film of, m.
 TYPICAL_FILM = {"boundary": 0.085e-3, "oil_jet": 1.0e-3}
 #: The standard normal's 97.5 % quantile.
-Z95 = 1.959963984540054
 
 
 @dataclasses.dataclass(frozen=True)

@@ -23,8 +23,8 @@ import numpy as np
 
 from ..errors import RattlefitError
 from ..io.recording import Recording, counts_sha256
+from ..problem.options import FitOptions
 from .noise import NoiseModel
-from .options import FitOptions
 from .result import (
     FIT_FORMAT,
     FIT_VERSION,

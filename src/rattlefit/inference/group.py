@@ -11,7 +11,7 @@ user who knows ``h_min`` and μ better than the priors can convert it to ``a``
 
 The profile runs in a copy of the fit's problem whose film coordinate is ``M``
 (:func:`group_problem`): ``a`` follows from ``M``, the viscosity factor and ``h_min``
-(:meth:`~rattlefit.inference.problem.Problem.film_of_group`) and is then dithered by the
+(:meth:`~rattlefit.problem.problem.Problem.film_of_group`) and is then dithered by the
 film's own column, so every point simulates exactly the realisations of the same point in
 ``a``. The noise model, the release states and the profile method
 (:func:`~rattlefit.inference.profile.profile_stage`) are the fit's.
@@ -26,10 +26,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..physics.model import DEFAULT_MIN_FILM, film_saturation, squeeze_momentum
+from ..problem.options import FitOptions
+from ..problem.parameters import ParameterSpec, momentum_name
+from ..problem.problem import Problem
 from .laplace import Laplace
-from .options import FitOptions
-from .parameters import ParameterSpec, momentum_name
-from .problem import Problem
 from .profile import profile_interval, profile_stage
 from .result import ParameterEstimate, estimate
 

@@ -5,11 +5,11 @@ by eye; :func:`identify` does it by least squares on log band PSDs of Δθ*, ove
 drag torque and the viscosity (a factor on the catalogue viscosity at each recording's
 temperature), with the nuisances a real rig needs (mesh-stiffness scale, ``h_min``, each
 recording's backlash) fitted under their priors. Each parameter is fitted in an unconstrained
-coordinate ``z`` (:mod:`~rattlefit.inference.parameters`).
+coordinate ``z`` (:mod:`~rattlefit.problem.parameters`).
 
 The stages, each a function of its own module:
 
-1. the problem and its seeded realisations (:func:`~rattlefit.inference.problem.problem_from`);
+1. the problem and its seeded realisations (:func:`~rattlefit.problem.problem.problem_from`);
 2. the search: seeded starts (:mod:`~rattlefit.inference.starts`; across lubrications also
    where each lubrication's own search ends, :mod:`~rattlefit.inference.across`), screened,
    then Levenberg–Marquardt from the best
@@ -32,7 +32,10 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from ..confidence import Z95_ONE_SIDED
 from ..io.recording import Recording
+from ..problem.options import FitOptions
+from ..problem.problem import Problem, problem_from, release_states
 from ..reproducibility import platform_info
 from ..util import stamped
 from .across import lubrication_starts
@@ -40,8 +43,6 @@ from .group import group_estimates
 from .laplace import Laplace, laplace_at
 from .learned import identify_learned
 from .least_squares import LM_REJECTIONS, Refined, refine_starts
-from .options import FitOptions
-from .problem import Problem, problem_from, release_states
 from .profile import (
     ProfileStage,
     film_valley,
@@ -114,8 +115,8 @@ def uncertainty(refined: Refined, y0, options: FitOptions, rng, say) -> Uncertai
             break
         say(
             f"the profiles reach {dc_min:.1f} below the optimum's cost (Monte Carlo allowance "
-            f"{1.645 * stage.noise_sd:.1f}): the Laplace and profile stages start again from "
-            "there"
+            f"{Z95_ONE_SIDED * stage.noise_sd:.1f}): the Laplace and profile stages start again "
+            "from there"
         )
         z = np.asarray(z_min, dtype=float)
         recentred += 1

@@ -15,10 +15,10 @@ import dataclasses
 import equinox as eqx
 import numpy as np
 
-from .forward import evaluate, fd_jacobian, fd_points
+from ..problem.forward import evaluate, fd_jacobian, fd_points
+from ..problem.options import FitOptions
+from ..problem.problem import Problem
 from .noise import NoiseModel, band_sigma, noise_model
-from .options import FitOptions
-from .problem import Problem
 
 #: Floor on the eigenvalues of the information matrix (a standard deviation of 1000 in z).
 MIN_INFORMATION = 1e-6

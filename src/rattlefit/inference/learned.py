@@ -1,6 +1,6 @@
 """Identification on the learned likelihood (``FitOptions(likelihood="learned")``).
 
-The stages: the problem (:func:`~rattlefit.inference.problem.problem_from`, for its
+The stages: the problem (:func:`~rattlefit.problem.problem.problem_from`, for its
 recordings, parameters and simulator); the likelihood learned in rounds
 (:func:`~rattlefit.likelihood.learn_likelihood`); the optimum, every parameter's profile and
 the Laplace covariance on it (:func:`~rattlefit.likelihood.estimate.fit_learned`); the
@@ -25,13 +25,13 @@ from ..likelihood.check import FAR_RECORDING, check_points
 from ..likelihood.estimate import CHI2_95, LearnedFit, LogMomentum, fit_learned, profile_derived
 from ..likelihood.learn import best_points
 from ..likelihood.store import Learned, read_learned, test_point_key
+from ..problem.options import FitOptions
+from ..problem.problem import Problem, problem_from
 from ..quantities import FILM, base_name
 from ..reproducibility import platform_info
 from ..util import stamped
 from .group import flanks, group_films, group_spec
 from .noise import NoiseModel
-from .options import FitOptions
-from .problem import Problem, problem_from
 from .result import (
     Estimates,
     FitResult,

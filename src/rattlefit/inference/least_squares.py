@@ -1,7 +1,7 @@
 """Least squares: Levenberg–Marquardt (optimistix) from the best of many screened starts.
 
 The Jacobian that each Gauss–Newton step uses is a finite difference of the ensemble-mean
-features (:func:`~rattlefit.inference.forward.jacobian_at`), handed to optimistix's solver
+features (:func:`~rattlefit.problem.forward.jacobian_at`), handed to optimistix's solver
 through its interactive interface: the solver's own iteration, with the simulation outside
 its compiled step.
 """
@@ -19,10 +19,10 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from . import forward
+from ..problem import forward
+from ..problem.options import FitOptions
+from ..problem.problem import Problem
 from .noise import band_sigma, ensemble_features
-from .options import FitOptions
-from .problem import Problem
 from .starts import prior_centre
 
 #: Levenberg–Marquardt steps per start and recording when ``FitOptions.max_iterations`` is
@@ -63,7 +63,7 @@ def levenberg_marquardt(jacobian_at: Callable, solver, z0, max_steps: int):
     through optimistix's interactive interface.
 
     Before each step, ``jacobian_at(z)`` gives the residual (n,) and its Jacobian (n, P) at
-    the step's trial point (in a fit, :func:`~rattlefit.inference.forward.jacobian_at`,
+    the step's trial point (in a fit, :func:`~rattlefit.problem.forward.jacobian_at`,
     simulated by the fit's one compiled program), and the step sees them as
     :func:`linearised_residual`. The iteration is optimistix's own: each step linearises the
     residual at ``state.y_eval`` and accepts or rejects that point; the loop, like

@@ -16,9 +16,9 @@ import numpy as np
 
 from ..features import ensemble
 from ..features.ensemble import chaotic_part, shrunk_correlation
-from .forward import evaluate
-from .options import FitOptions
-from .problem import Problem, release_states
+from ..problem.forward import evaluate
+from ..problem.options import FitOptions
+from ..problem.problem import Problem, release_states
 
 
 @dataclasses.dataclass(frozen=True)

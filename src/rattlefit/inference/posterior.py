@@ -1,7 +1,7 @@
 """Bayesian posterior of the identified parameters by affine-invariant ensemble MCMC (emcee).
 
 The target is the posterior density in the fit's unconstrained coordinates ``z``
-(:class:`~rattlefit.inference.parameters.ParameterSpec`: ``v = lower·(upper/lower)^sigmoid(z)``),
+(:class:`~rattlefit.problem.parameters.ParameterSpec`: ``v = lower·(upper/lower)^sigmoid(z)``),
 
     log p(z | d) = −½ Σ (row_scale · W · (d − μ̄_M(z)) / σ)² + log π(v(z)) + Σ log |∂log v/∂z|,
 
@@ -48,14 +48,14 @@ from ..errors import RattlefitError
 from ..io.recording import Recording
 from ..likelihood.model import LearnedLikelihood, batch_chi2_terms
 from ..likelihood.store import GROUP, Learned, read_group, write_group
+from ..problem.forward import evaluate
+from ..problem.options import FitOptions
+from ..problem.parameters import Z_END, ParameterSpec
+from ..problem.problem import problem_from
 from ..reproducibility import platform_info
 from . import arviz_io
-from .forward import evaluate
 from .identify import identify
 from .noise import NoiseModel
-from .options import FitOptions
-from .parameters import Z_END, ParameterSpec
-from .problem import problem_from
 from .result import FitResult
 
 #: Walkers beyond this |z| have a value within e^-20 of its range's end: zero density there.
@@ -440,7 +440,7 @@ def run_chain(
     """Run (or continue) emcee's ensemble sampler on ``log_prob`` to ``n_steps`` in all.
 
     ``log_prob`` follows emcee's ``vectorize=True`` contract. A fresh chain starts its walkers
-    at ``z`` (clipped to ±:data:`~rattlefit.inference.parameters.Z_END`) plus ``init_scale``
+    at ``z`` (clipped to ±:data:`~rattlefit.problem.parameters.Z_END`) plus ``init_scale``
     times a draw from ``covariance_z`` (each coordinate's standard deviation capped at 4, each
     offset clipped to ±2), both the draw and emcee's moves seeded
     by ``seed``. A ``backend`` that already holds steps is continued from its last state and

@@ -11,14 +11,14 @@ import jax.numpy as jnp
 import numpy as np
 from scipy import stats
 
+from ..confidence import Z95
 from ..io.recording import counts_sha256
 from ..physics.model import RattleParams
+from ..problem.options import FitOptions
+from ..problem.parameters import MOMENTUM, ParameterSpec
+from ..problem.problem import Problem, problem_from
 from .advice import what_would_pin
 from .noise import NoiseModel
-from .options import FitOptions
-from .parameters import MOMENTUM, ParameterSpec
-from .problem import Problem, problem_from
-from .profile import Z95
 
 #: χ² p-value below which a fit is flagged as poor (:attr:`FitResult.poor_fit`).
 POOR_FIT_P = 1e-3
@@ -205,13 +205,13 @@ class Provenance:
 class FittedState:
     """What :func:`~rattlefit.sample` and :func:`~rattlefit.diagnose` start from.
 
-    options : the :class:`~rattlefit.inference.options.FitOptions` of the fit.
+    options : the :class:`~rattlefit.problem.options.FitOptions` of the fit.
     z : (P,) the optimum in the unconstrained coordinates.
     covariance_z : (P, P) Laplace covariance in z.
     noise : the :class:`~rattlefit.inference.noise.NoiseModel` fixed at the optimum (on
         the learned likelihood, from its covariance there:
         :func:`~rattlefit.inference.learned.learned_noise`); None when read back from JSON.
-    problem : the fit's :class:`~rattlefit.inference.problem.Problem` at the optimum (its
+    problem : the fit's :class:`~rattlefit.problem.problem.Problem` at the optimum (its
         realisations and band spread, the noise model's ``sigma``); None when the fit did
         not run in this process (:meth:`problem_for` rebuilds it).
     learned : the :class:`~rattlefit.likelihood.store.Learned` likelihood of a fit on it
@@ -229,7 +229,7 @@ class FittedState:
         """The fit's problem, with its band spread ``sigma`` (R arrays (F,)) at the optimum:
         :attr:`problem` when the fit ran in this process, else rebuilt from ``recordings``
         (the fitted ones) and :attr:`options`
-        (:func:`~rattlefit.inference.problem.problem_from`)."""
+        (:func:`~rattlefit.problem.problem.problem_from`)."""
         if self.problem is not None:
             return self.problem
         problem, _, _ = problem_from(recordings, self.options)

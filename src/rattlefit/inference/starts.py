@@ -11,8 +11,8 @@ import math
 import numpy as np
 from scipy.stats import qmc
 
-from .parameters import ParameterSpec
-from .problem import Problem
+from ..problem.parameters import ParameterSpec
+from ..problem.problem import Problem
 
 #: Where the starting points of (a, T_b) are spread (log-uniformly), m and N m.
 START_RANGES = ((5e-6, 2e-3), (5e-3, 0.2))  # (each film half-length, drag torque)

@@ -31,7 +31,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..inference.problem import Problem
+from ..problem.problem import Problem
 from .design import simulate_design, unit_of_z
 from .model import LearnedLikelihood
 

@@ -2,7 +2,7 @@
 
 A design point is a vector ``u`` of the fit's parameters in the unit box: each parameter's
 log value as a fraction of its range, ``u = sigmoid(z)`` in the fit's unconstrained
-coordinate ``z`` (:class:`~rattlefit.inference.parameters.ParameterSpec`). The first round
+coordinate ``z`` (:class:`~rattlefit.problem.parameters.ParameterSpec`). The first round
 fills the prior box with a scrambled Sobol' sequence; later rounds draw from the current
 posterior, tempered so that its tails are covered too (:mod:`rattlefit.likelihood.learn`).
 Each design point is simulated once, with its own release state and encoder count phases and
@@ -15,8 +15,8 @@ import numpy as np
 from scipy.special import expit, logit
 from scipy.stats import qmc
 
-from ..inference.forward import evaluate_rows
-from ..inference.problem import Problem
+from ..problem.forward import evaluate_rows
+from ..problem.problem import Problem
 
 #: A parameter with a prior is designed over its prior's central ± this many sd (in log),
 #: clipped to its range; one without (a film half-length, the drag torque) over its range.
@@ -70,7 +70,7 @@ def simulate_design(
 
     Only the point's parameters that this recording's model reads matter; the rows are
     simulated in the order of their drag torque, which sets their cost (see
-    :func:`~rattlefit.inference.forward.evaluate`).
+    :func:`~rattlefit.problem.forward.evaluate`).
     """
     u = np.atleast_2d(np.asarray(u, float))
     z = z_of_unit(u)

@@ -21,7 +21,7 @@ import numpy as np
 import optimistix as optx
 from scipy import stats
 
-from ..inference.profile import CHI2_1_95 as CHI2_95
+from ..confidence import CHI2_1_95 as CHI2_95
 from ..physics.model import squeeze_momentum
 from .design import EDGE
 from .model import LearnedLikelihood, cost_hessian

@@ -21,7 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..inference.problem import Problem
+from ..problem.problem import Problem
 from .density import DensityOptions, fit_density
 from .design import prior_box, simulate_design, sobol_design, unit_of_z, z_of_unit
 from .model import LearnedLikelihood, batch_cost, batch_log_density

@@ -24,7 +24,7 @@ class LearnedLikelihood(eqx.Module):
     """The recordings' learned likelihood and the parameters' priors (a pytree).
 
     ``data`` (R, F): each recording's measured features; ``densities``: one per recording;
-    ``specs``: the fit's :class:`~rattlefit.inference.parameters.ParameterSpec` tuple, whose
+    ``specs``: the fit's :class:`~rattlefit.problem.parameters.ParameterSpec` tuple, whose
     unconstrained coordinate ``z`` every method takes ((P,) arrays).
     """
 

@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import RattlefitError
-from ..inference.problem import Problem
+from ..problem.problem import Problem
 from .density import DensityOptions, FeatureDensity, Whitening, make_flow
 from .learn import Design
 from .model import LearnedLikelihood

@@ -8,8 +8,8 @@ from html import escape
 from pathlib import Path
 
 from ..diagnosis.result import MISSED_Z
-from ..inference.options import unfinished_fit_advice
 from ..io.recording import Recording
+from ..problem.options import unfinished_fit_advice
 from ..util import atomic_write
 from . import figures
 from .explain import (

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..confidence import CHI2_1_95, Z95_ONE_SIDED
 from ..diagnosis.result import MISSED_Z, Diagnosis
 from ..inference.posterior import Posterior
-from ..inference.profile import CHI2_1_95
 from ..inference.result import FitResult, below_optimum, identified_ratio
 from ..quantities import FILM, base_name, display
 from .explain import below_optimum_sentence
@@ -121,7 +121,7 @@ def _profile_line(profile: dict) -> str:
             source = "the cost's roughness (rms) 1–2 % from the optimum"
     return (
         f"95 % intervals: where the profile cost is within {profile['threshold']:.1f} of the "
-        f"optimum's (χ²₁ {CHI2_1_95:.2f} + 1.645 × {sd:.1f}, {source})"
+        f"optimum's (χ²₁ {CHI2_1_95:.2f} + {Z95_ONE_SIDED} × {sd:.1f}, {source})"
     )
 
 

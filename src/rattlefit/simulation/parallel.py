@@ -3,16 +3,16 @@
 An adaptive solve of this model is a long chain of tiny scalar steps, which one XLA CPU device
 runs on one core. JAX exposes a single CPU device unless told otherwise, so a batch of
 simulations (``simulate_batch``, and every evaluation inside ``identify``) would leave the other
-cores idle. :func:`use_cpu_cores` asks JAX for one CPU device per core — it must run before JAX
-executes anything, which is why the command-line interface calls it first thing — and
-:func:`map_rows` then splits a batch evenly over the devices with ``shard_map``; each device
-runs its share with ``jax.lax.map``. With one device :func:`map_rows` is exactly
+cores idle. :func:`rattlefit.use_cpu_cores` asks JAX for one CPU device per core — it must
+run before JAX executes anything, which is why the command-line interface calls it first
+thing — and :func:`map_rows` then splits a batch evenly over the devices with ``shard_map``;
+each device runs its share with ``jax.lax.map``. With one device :func:`map_rows` is exactly
 ``jax.lax.map``, so its results never depend on whether the cores were enabled (the features
 agree to the last bit). :func:`map_blocks` gives each device its whole share at once, for the
 lockstep integrator of :mod:`rattlefit.simulation.lockstep`; a vectorised transcendental may
 round differently in another batch layout, and rattle's chaos grows that into another
 realisation, so results computed that way depend on the device count. A fit's evaluations do
-not use it: :func:`rattlefit.inference.forward.evaluate_rows` runs fixed-size blocks, one
+not use it: :func:`rattlefit.problem.forward.evaluate_rows` runs fixed-size blocks, one
 program for every device, so that its results do not.
 
 On a GPU, JAX already lists every GPU, and :func:`map_rows` shards over them unchanged.
@@ -20,41 +20,12 @@ On a GPU, JAX already lists every GPU, and :func:`map_rows` shards over them unc
 
 from __future__ import annotations
 
-import os
-import warnings
 from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, PartitionSpec
-
-
-def use_cpu_cores(n: int | None = None) -> int:
-    """Expose ``n`` CPU devices to JAX (default: one per available core).
-
-    Call before any JAX computation (JAX fixes its devices when it first runs something);
-    this call itself does not start JAX. Returns ``n``, or, if JAX had already started (a
-    warning says so), the CPU device count it has. Has no effect on the accelerators JAX uses
-    when it finds a GPU.
-    """
-    if n is None:
-        try:
-            n = len(os.sched_getaffinity(0))
-        except AttributeError:  # pragma: no cover - not on Linux
-            n = os.cpu_count() or 1
-    n = max(int(n), 1)
-    try:
-        jax.config.update("jax_num_cpu_devices", n)
-    except RuntimeError:
-        warnings.warn(
-            "rattlefit.use_cpu_cores: JAX has already started, so its CPU device count is "
-            "fixed; call use_cpu_cores() before any JAX computation to use every core",
-            RuntimeWarning,
-            stacklevel=2,
-        )
-        return len(jax.devices("cpu"))
-    return n
 
 
 def map_rows(fn: Callable, rows):

@@ -2,7 +2,6 @@
 (:mod:`.valley`) and the profile stage of a fit (:mod:`.stage`)."""
 
 from .curves import (
-    CHI2_1_95,
     CONTINUATION_GROWTH,
     CONTINUATION_LOG_STEP,
     PROFILE_JITTER,
@@ -13,7 +12,6 @@ from .curves import (
     SCAN_SAME,
     SCREEN_FACTOR,
     SCREEN_SDS,
-    Z95,
     ProfileCosts,
     Valley,
     admit_rivals,
@@ -34,7 +32,6 @@ from .stage import POLISH_DAMPING, ProfileStage, profile_stage
 from .valley import VALLEY_GAPS, film_valley
 
 __all__ = [
-    "CHI2_1_95",
     "CONTINUATION_GROWTH",
     "CONTINUATION_LOG_STEP",
     "POLISH_DAMPING",
@@ -47,7 +44,6 @@ __all__ = [
     "SCREEN_FACTOR",
     "SCREEN_SDS",
     "VALLEY_GAPS",
-    "Z95",
     "ProfileCosts",
     "ProfileStage",
     "Valley",

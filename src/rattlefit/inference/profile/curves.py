@@ -16,7 +16,7 @@ the stages here are built to spend few of them:
    continuation, where its valley bends away from the scan's straight paths.
 
 A profile is a dict ``{t: (Δcost, z)}`` of values ``t`` (in the unconstrained coordinate z
-of :class:`~rattlefit.inference.parameters.ParameterSpec`) to the cost above the optimum's and the
+of :class:`~rattlefit.problem.parameters.ParameterSpec`) to the cost above the optimum's and the
 point that attained it; :func:`profile_interval` reads its interval and the brackets of its
 ends. Costs come from callables that map points (N, P) to Δcosts (N,): :class:`ProfileCosts`
 in a fit, a closed form in the tests.
@@ -29,16 +29,14 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..parameters import Z_END
+from ...confidence import CHI2_1_95, Z95_ONE_SIDED
+from ...problem.parameters import Z_END
 
 #: More guesses for the other parameters at a profile value: ``valley(i, near, t)`` returns
 #: points with parameter i at t where the model's physics puts the valley of the cost that
 #: passes through ``near`` (:func:`profile_guesses`).
 Valley = Callable[[int, np.ndarray, float], list[np.ndarray]]
 
-#: The standard normal's 97.5 % quantile: a two-sided 95 % interval is ±Z95 σ.
-Z95 = 1.959963984540054
-CHI2_1_95 = Z95**2  # 95 % quantile of χ² with one degree of freedom
 
 #: Where :func:`profile_scan` evaluates each free parameter: fractions of its log range …
 SCAN_FRACTIONS = (0.0, 0.2, 0.4, 0.6, 0.8, 1.0)
@@ -83,7 +81,7 @@ def profile_threshold(noise_sd: float, jitter_costs: np.ndarray | None = None) -
     sd = noise_sd
     if jitter_costs is not None and np.size(jitter_costs):
         sd = max(sd, jitter_noise(jitter_costs))
-    return CHI2_1_95 + 1.645 * sd
+    return CHI2_1_95 + Z95_ONE_SIDED * sd
 
 
 def jitter_noise(jitter_costs) -> float:

@@ -17,17 +17,17 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..forward import chunk_size, evaluate, residuals
+from ...confidence import Z95, Z95_ONE_SIDED
+from ...problem.forward import chunk_size, evaluate, residuals
+from ...problem.options import FitOptions
+from ...problem.parameters import Z_END
+from ...problem.problem import Problem, redrawn, release_states
 from ..laplace import Laplace
 from ..noise import synthetic_cost
-from ..options import FitOptions
-from ..parameters import Z_END
-from ..problem import Problem, redrawn, release_states
 from .curves import (
     CONTINUATION_LOG_STEP,
     PROFILE_JITTER,
     SCAN_SAME,
-    Z95,
     ProfileCosts,
     Valley,
     admit_rivals,
@@ -47,7 +47,6 @@ from .curves import (
 POLISH_DAMPING = (0.03, 0.3)
 #: One-sided 95 % quantile of the standard normal: the Monte Carlo allowance for a profile's
 #: lowest point below the optimum (:func:`~rattlefit.inference.profile.lower_profile_point`).
-Z95_ONE_SIDED = 1.645
 
 
 @dataclasses.dataclass(frozen=True)

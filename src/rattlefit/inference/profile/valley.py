@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...physics.model import equivalent_viscosity
-from ..problem import Problem
+from ...problem.problem import Problem
 from .curves import Valley
 
 #: The gaps, in multiples of ``h_min``, at which :func:`film_valley` keeps the squeeze

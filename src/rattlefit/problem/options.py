@@ -211,7 +211,7 @@ class FitOptions:
 
     seed : seeds every random draw of the fit (release states, dither, encoder phases,
         starts); reported in the result. Default 0.
-    priors : parameter name → replacement :class:`~rattlefit.inference.parameters.ParameterSpec`
+    priors : parameter name → replacement :class:`~rattlefit.problem.parameters.ParameterSpec`
         (e.g. from ``--prior min_film=2e-6:0.1``). Default none.
     """
 

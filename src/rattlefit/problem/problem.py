@@ -185,7 +185,7 @@ class Problem(eqx.Module):
 
         The rows are solved in one lockstep batch on one device
         (:func:`~rattlefit.simulation.solve.solve_rows`;
-        :func:`~rattlefit.inference.forward.evaluate_rows` spreads blocks of rows over the
+        :func:`~rattlefit.problem.forward.evaluate_rows` spreads blocks of rows over the
         devices); every row has its own recording's model and drive, its parameters and its
         release state.
         """
