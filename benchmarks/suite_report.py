@@ -306,7 +306,8 @@ def report_identify(res: dict) -> list[str]:
         out.append(f"   ERROR: {idf['error']}")
     else:
         out.append(
-            f"   wall {idf['wall_s']:.1f} s; success={idf['success']} ({idf['message']}); "
+            f"   wall {idf['wall_s']:.1f} s; success={idf['success']} "
+            f"({idf.get('outcome') or idf.get('message')}); "
             f"χ²={idf['chi2']:.1f} on {idf['dof']} dof"
         )
         for k, v in idf["parameters"].items():

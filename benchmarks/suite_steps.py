@@ -513,7 +513,7 @@ def step_identify(args):
     return {
         "wall_s": wall,
         "success": bool(result.statistics.success),
-        "message": str(result.statistics.message),
+        "outcome": result.statistics.search.outcome.value,
         "chi2": float(result.statistics.chi2),
         "dof": int(result.statistics.dof),
         "parameters": params,

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from rattlefit import FitOptions, FitResult
+from rattlefit.inference.outcome import SearchEnd, SearchOutcome
 from rattlefit.inference.profile import profile_threshold
 from rattlefit.inference.result import (
     Estimates,
@@ -53,8 +54,7 @@ def _result(
             chi2_recordings=list(chi2_recordings),
             regime_share=list(regime_share),
             n_iterations=3,
-            success=success,
-            message="converged",
+            search=SearchEnd(SearchOutcome.CONVERGED if success else SearchOutcome.STEP_LIMIT),
         ),
         Spectra(measured=[], fitted=[], sigma=[], band_centers=np.zeros(1)),
         Provenance(recordings=list(recordings), seed=7, wall_time=1.0),
@@ -89,6 +89,21 @@ def test_the_table_states_the_search_state_and_p():
     stopped = format_table(_result(3.0, 2, success=False))
     assert "stopped at its step limit after 3 steps" in stopped
     assert "converged" not in stopped
+    # a stalled run is a converged search, counted; a re-centred one says so
+    stalled = dataclasses.replace(
+        _result(3.0, 2),
+        statistics=dataclasses.replace(
+            _result(3.0, 2).statistics, search=SearchEnd(SearchOutcome.STALLED, 3, 2, 1)
+        ),
+    )
+    text = format_table(stalled)
+    assert "converged (2 of 3 runs stalled at the cost's noise" in text
+    assert "re-centred 1× on the profiles' minimum" in text
+    assert stalled.statistics.success and not _result(3.0, 2, success=False).statistics.success
+    # the JSON holds the outcome as a value, and it reads back
+    doc = stalled.to_json()["fit"]
+    assert doc["search"] == {"outcome": "stalled", "runs": 3, "stalled_runs": 2, "recentred": 1}
+    assert SearchEnd.from_dict(doc["search"]) == stalled.statistics.search
     assert "below the optimum" not in done
     low = {"drag_torque": [(0.01, 5.0), (0.02, 0.0), (0.03, -14.2)]}
     assert "the profiles reach 14.2 below the optimum's cost" in format_table(
@@ -670,7 +685,7 @@ def test_an_unconverged_fit_is_told_what_to_run_and_one_state_reaches_every_outp
         )
         doc = res.to_json()
         html = html_report(fit=doc, recordings=[rec])
-        (note,) = [p for p in html.split("<p") if "did not converge" in p]
+        (note,) = [p for p in html.split("<p") if "stopped at its step limit" in p]
         assert wanted in note and unwanted not in note
     # profiles below the optimum: one state in the JSON, the table and the HTML
     low = {"drag_torque": [(0.01, 5.0), (0.02, 0.0), (0.03, -17.6)]}

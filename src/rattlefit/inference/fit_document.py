@@ -25,6 +25,7 @@ from ..errors import RattlefitError
 from ..io.recording import Recording, counts_sha256
 from ..problem.options import FitOptions
 from .noise import NoiseModel
+from .outcome import SearchEnd
 from .result import (
     FIT_FORMAT,
     FIT_VERSION,
@@ -126,8 +127,7 @@ def statistics_of_document(fit: dict) -> Statistics:
         chi2_recordings=[float(c) for c in fit.get("chi2_per_recording") or []],
         regime_share=[float(s) for s in fit.get("regime_share_per_recording") or []],
         n_iterations=int(fit.get("iterations", 0)),
-        success=bool(fit.get("success", True)),
-        message=str(fit.get("message", "")),
+        search=SearchEnd.from_dict(fit["search"]),
     )
 
 

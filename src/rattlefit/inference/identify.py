@@ -42,7 +42,8 @@ from .across import lubrication_starts
 from .group import group_estimates
 from .laplace import Laplace, laplace_at
 from .learned import identify_learned
-from .least_squares import LM_REJECTIONS, Refined, refine_starts
+from .least_squares import Refined, refine_starts
+from .outcome import search_end
 from .profile import (
     ProfileStage,
     film_valley,
@@ -136,20 +137,6 @@ def interval_ends(unc: Uncertainty, options: FitOptions) -> tuple[np.ndarray, np
     return z_lo, z_hi
 
 
-def search_message(refined: Refined, recentred: int) -> str:
-    """How the search ended, in words (:attr:`FitResult.message`)."""
-    converged = refined.converged
-    text = "converged" if converged else "step limit reached"
-    if any(refined.stalled):
-        text += (
-            f" ({sum(refined.stalled)} of {len(refined.stalled)} Levenberg–Marquardt runs "
-            f"stalled at the cost's noise: {LM_REJECTIONS} rejected steps in a row)"
-        )
-    if recentred:
-        return text + f"; re-centred {recentred}× on the profiles' minimum"
-    return text + ("" if converged else "; estimate is the last iterate")
-
-
 def assemble_result(
     unc: Uncertainty,
     refined: Refined,
@@ -186,8 +173,7 @@ def assemble_result(
         chi2_recordings=[float(c) for c in lap.noise.chi2_recordings],
         regime_share=[float(x) for x in lap.noise.regime_share],
         n_iterations=refined.n_iter,
-        success=refined.converged,
-        message=search_message(refined, unc.recentred),
+        search=search_end(refined.converged, refined.stalled, unc.recentred),
     )
     spectra = spectra_of(problem, lap.mean, problem.sigma)
     provenance = provenance_of(rigs, options, wall, platform)

@@ -32,6 +32,7 @@ from ..reproducibility import platform_info
 from ..util import stamped
 from .group import flanks, group_films, group_spec
 from .noise import NoiseModel
+from .outcome import search_end
 from .result import (
     Estimates,
     FitResult,
@@ -148,9 +149,7 @@ def learned_result(
         dof=fit.dof,
         chi2_recordings=[float(c) for c in np.asarray(chi2_rec)],
         n_iterations=fit.optimum.steps,
-        success=converged,
-        message=("converged" if converged else "step limit reached")
-        + " (quasi-Newton on the learned likelihood)",
+        search=search_end(converged, (False,)),
     )
     spectra = spectra_of(problem, mean, [np.sqrt(np.diag(c)) for c in total])
     provenance = provenance_of(rigs, options, wall, platform, likelihood=info)

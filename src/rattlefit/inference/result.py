@@ -19,6 +19,7 @@ from ..problem.parameters import MOMENTUM, ParameterSpec
 from ..problem.problem import Problem, problem_from
 from .advice import what_would_pin
 from .noise import NoiseModel
+from .outcome import SearchEnd
 
 #: χ² p-value below which a fit is flagged as poor (:attr:`FitResult.poor_fit`).
 POOR_FIT_P = 1e-3
@@ -110,8 +111,7 @@ class Statistics:
         with; below one half the recording is in a rarer regime than another (empty on the
         learned likelihood).
     n_iterations : optimiser steps over all starts.
-    success : every search converged or stalled before its step limit.
-    message : how the search ended, in words.
+    search : how the search ended (:class:`~rattlefit.inference.outcome.SearchEnd`).
     """
 
     chi2: float
@@ -119,8 +119,12 @@ class Statistics:
     chi2_recordings: list[float] = dataclasses.field(default_factory=list)
     regime_share: list[float] = dataclasses.field(default_factory=list)
     n_iterations: int = 0
-    success: bool = True
-    message: str = ""
+    search: SearchEnd = dataclasses.field(default_factory=SearchEnd)
+
+    @property
+    def success(self) -> bool:
+        """Every optimiser run ended by its own criterion (none at its step limit)."""
+        return self.search.outcome.success
 
     @property
     def p_value(self) -> float:
@@ -276,7 +280,7 @@ class FitResult:
                 "regime_share_per_recording": st.regime_share,
                 "iterations": st.n_iterations,
                 "success": st.success,
-                "message": st.message,
+                "search": st.search.to_dict(),
                 "below_optimum": below_optimum(est.profiles),
                 "seed": pr.seed,
                 "platform": pr.platform,  # seeded results depend on it
@@ -316,7 +320,7 @@ def below_optimum(profiles: dict) -> dict | None:
 
 
 #: The fit document's format tag and version.
-FIT_FORMAT, FIT_VERSION = "rattlefit.fit", 1
+FIT_FORMAT, FIT_VERSION = "rattlefit.fit", 2
 #: The noise model's arrays as the document stores them (:class:`NoiseModel`'s fields).
 NOISE_ARRAYS = ("sigma", "whiten", "row_scale", "chi2_recordings")
 

@@ -30,6 +30,7 @@ from .inputs import (
 )
 from .summary import recording_summary, summary_rows
 from .tables import suggestion_note, suggestion_table
+from .wording import search_sentence
 
 CSS = """
 body { font-family: -apple-system, 'Segoe UI', Helvetica, Arial, sans-serif; color: #1d1d1f;
@@ -96,7 +97,7 @@ def _fit_notes(f: dict) -> list[str]:
         )
     if f.get("success") is False:
         out.append(
-            f"The search did not converge ({escape(str(f.get('message', '')))}): the optimum "
+            f"The search {escape(search_sentence(f['search']))}: the optimum "
             f"and the intervals are rough; {escape(unfinished_fit_advice(f.get('options', {})))}."
         )
     if f.get("below_optimum"):

@@ -11,7 +11,7 @@ from ..inference.posterior import Posterior
 from ..inference.result import FitResult, below_optimum, identified_ratio
 from ..quantities import FILM, base_name, display
 from .explain import below_optimum_sentence
-from .wording import finding_size, verdict_sentence
+from .wording import finding_size, search_sentence, verdict_sentence
 
 #: The parameters the table shows first: the films, the drag torque, the viscosity and the
 #: squeeze momenta; the nuisances follow in a block of their own.
@@ -63,7 +63,7 @@ def format_table(result: FitResult) -> str:
     if len(st.chi2_recordings) > 1:
         per = " (" + " + ".join(f"{c:.1f}" for c in st.chi2_recordings) + " by recording)"
     search = "quasi-Newton" if pr.likelihood.get("method") == "learned" else ("Levenberg–Marquardt")
-    state = "converged" if st.success else "stopped at its step limit"
+    state = search_sentence(st.search.to_dict())
     lines.append(
         f"χ² = {st.chi2:.1f}{per} on {st.dof} dof (p = {st.p_value:.2g}); "
         f"{search} {state} after {st.n_iterations} steps; seed {pr.seed}; "

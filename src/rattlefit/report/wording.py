@@ -8,6 +8,8 @@ from ..diagnosis.evidence import Finding
 from ..diagnosis.outcome import EffectOutcome
 from ..diagnosis.result import Diagnosis
 from ..features.orders import AngleTest
+from ..inference.least_squares import LM_REJECTIONS
+from ..inference.outcome import SearchOutcome
 from ..physics.effects import effect_class
 
 
@@ -176,3 +178,21 @@ def diagnosis_document(diag: Diagnosis) -> dict:
     writes."""
     doc = diag.to_json()
     return {**doc, "sentence": verdict_sentence(diag)}
+
+
+def search_sentence(search: dict) -> str:
+    """How a fit's search ended, in words, from its JSON form
+    (:meth:`rattlefit.inference.outcome.SearchEnd.to_dict`)."""
+    outcome = SearchOutcome(search["outcome"])
+    runs, stalled = int(search.get("runs", 1)), int(search.get("stalled_runs", 0))
+    if outcome is SearchOutcome.STEP_LIMIT:
+        text = "stopped at its step limit (the estimate is its last iterate)"
+    elif outcome is SearchOutcome.STALLED:
+        text = (
+            f"converged ({stalled} of {runs} runs stalled at the cost's noise: "
+            f"{LM_REJECTIONS} trial steps in a row rejected)"
+        )
+    else:
+        text = "converged"
+    recentred = int(search.get("recentred", 0))
+    return text + (f"; re-centred {recentred}× on the profiles' minimum" if recentred else "")
