@@ -2,6 +2,7 @@
 against closed forms: the map from z is ``lower · (upper/lower)^sigmoid(z)``, its
 log-derivative ``log(upper/lower) · s(1 − s)``, and the priors' rows are log-normal."""
 
+import json
 import math
 
 import jax
@@ -131,3 +132,62 @@ def test_a_role_is_derived_from_the_prior_only_when_not_given():
     )
     with pytest.raises(RattlefitError, match="role 'free' is not one of"):
         ParameterSpec("x", "m", 1.0, 2.0, role="free")
+
+
+def _two_lubrication_space():
+    """A space as a fit of a boundary and an oil-jet recording has it, by hand: its films,
+    the shared parameters and one backlash per recording."""
+    from rattlefit.problem.space import ParameterSpace
+
+    films = ("film_half_length[boundary]", "film_half_length[oil_jet]")
+    shared = [s for s in default_specs([], {}) if s.name != "film_half_length"]
+    own = [ParameterSpec(f, "m", 1e-6, 5e-3, role="physical") for f in films]
+    backlash = [
+        ParameterSpec(f"backlash[{k}]", "m", 1e-4, 4e-4, center=2e-4, log_sd=0.01) for k in range(2)
+    ]
+    return ParameterSpace((*own, *shared, *backlash), films)
+
+
+def test_the_space_maps_named_values_onto_each_recordings_model_parameters():
+    space = _two_lubrication_space()
+    values = dict(zip(space.names, [8e-5, 1e-3, 0.02, 1.3, 0.9, 3e-6, 2.1e-4, 2.2e-4], strict=True))
+    viscosities = np.array([0.49, 0.40])  # each recording's catalogue μ, Pa s
+    for r, film in enumerate(space.films):
+        p = space.rattle_params(values, r, viscosities)
+        assert float(p.film_half_length) == values[film]
+        assert float(p.backlash) == values[f"backlash[{r}]"]
+        # the viscosity factor scales the recording's own catalogue viscosity
+        assert float(p.viscosity) == pytest.approx(1.3 * viscosities[r], rel=1e-15)
+        assert (float(p.drag_torque), float(p.min_film)) == (0.02, 3e-6)
+        assert float(p.stiffness_scale) == 0.9
+    # traced: the recording's index may be a tracer
+    at = jax.jit(lambda r: space.rattle_params(values, r, viscosities).film_half_length)
+    assert float(at(jnp.asarray(1))) == values["film_half_length[oil_jet]"]
+
+
+def test_a_parameter_added_to_the_space_alone_reaches_the_model_and_the_documents():
+    """A toy parameter, a factor on the drag torque with a prior, added through the space and
+    nothing else: the model's drag is the product, its coordinate round-trips, the space's
+    document reads back, and the roles list it among the nuisances."""
+    from rattlefit.problem.space import ParameterSpace
+
+    space = _two_lubrication_space()
+    toy = ParameterSpec("drag_factor", "1", 0.5, 2.0, center=1.0, log_sd=0.1, scales="drag_torque")
+    bigger = space.extended(toy)
+    assert bigger.names[-1] == "drag_factor" and "drag_factor" in bigger.of_role("nuisance")
+    z = np.linspace(-1.0, 1.0, len(bigger.specs))
+    values = bigger.values(z)
+    p = bigger.rattle_params(values, 0, np.array([0.49, 0.40]))
+    assert float(p.drag_torque) == pytest.approx(
+        values["drag_torque"] * values["drag_factor"], rel=1e-15
+    )
+    np.testing.assert_allclose(bigger.z_of(values), z, rtol=0, atol=1e-9)
+    again = ParameterSpace.from_dict(json.loads(json.dumps(bigger.to_dict())))
+    assert again == bigger
+    # a spec is checked against the one registry of units, and a factor against the model
+    with pytest.raises(RattlefitError, match="drag_torque is in 'N m'"):
+        ParameterSpec("drag_torque", "N", 1e-3, 1.0)
+    with pytest.raises(RattlefitError, match="scales 'drag'"):
+        ParameterSpec("x", "1", 0.5, 2.0, scales="drag")
+    with pytest.raises(RattlefitError, match="drag_factor named twice"):
+        bigger.extended(toy)

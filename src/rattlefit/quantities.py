@@ -86,6 +86,20 @@ QUANTITIES = {
 
 #: The film half-length's name (a fit across lubrications indexes it by lubrication).
 FILM = "film_half_length"
+#: The other fitted quantities' names (every module spells them through these). A prior on the
+#: viscosity is given in Pa s under VISCOSITY (at the first recording's oil temperature); the
+#: fit's coordinate is the factor VISCOSITY_SCALE on the oil's μ. MOMENTUM is the squeeze-film
+#: group's coordinate, the film's momentum per approach (:mod:`rattlefit.inference.group`).
+DRAG_TORQUE = "drag_torque"
+VISCOSITY = "viscosity"
+VISCOSITY_SCALE = "viscosity_scale"
+MIN_FILM = "min_film"
+STIFFNESS_SCALE = "stiffness_scale"
+BACKLASH = "backlash"
+MOMENTUM = "squeeze_momentum"
+#: What rattlefit identifies, the seed paper's three: the film half-length, the drag torque and
+#: the viscosity (tables and campaign reports show them first).
+TARGETS = (FILM, DRAG_TORQUE, VISCOSITY)
 
 _INDEX = re.compile(r"\[(.*)\]$")
 

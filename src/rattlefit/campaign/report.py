@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..quantities import axis_label, display
+from ..quantities import TARGETS, axis_label, display
 from ..report.document import CSS
 from ..report.explain import display_unit, estimate_cells
 from ..report.figures import png
@@ -29,8 +29,6 @@ from ..report.plots import pyplot
 from ..util import atomic_write
 from ..version import __version__
 
-#: The parameters drawn against centre distance, and the table's columns.
-TARGETS = ("film_half_length", "drag_torque", "viscosity")
 #: Each lubrication's marker and colour (the paper's: □ dry, ○ boundary, ◇ oil jet).
 STYLE = {
     "dry": ("s", "C3"),

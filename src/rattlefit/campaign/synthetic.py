@@ -24,6 +24,7 @@ from ..io.recording import OperatingPoint, read_truth, write_recording
 from ..physics.geometry import TABLE2, table2_pair
 from ..physics.model import RattleParams
 from ..physics.oil import dynamic_viscosity
+from ..quantities import DRAG_TORQUE, FILM
 from ..simulation.synthetic import PAPER_OIL, synthesize
 from .manifest import write_manifest
 
@@ -263,7 +264,7 @@ def same_recording(path: Path, seed: int, truth: SyntheticTruth, point: dict, du
     return (
         known is not None
         and known.get("seed") == seed
-        and abs(float(known.get("film_half_length", -1)) - truth.film(point["lubrication"])) < 1e-15
-        and abs(float(known.get("drag_torque", -1)) - truth.drag_torque) < 1e-15
+        and abs(float(known.get(FILM, -1)) - truth.film(point["lubrication"])) < 1e-15
+        and abs(float(known.get(DRAG_TORQUE, -1)) - truth.drag_torque) < 1e-15
         and abs(rec.duration - duration) < 1e-9
     )

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..quantities import base_name, index_of
+from ..quantities import VISCOSITY, base_name, index_of
 from ..util import atomic_write
 from .manifest import Unit
 
@@ -98,7 +98,7 @@ def unit_rows(unit: Unit, doc: dict, recordings: list[dict], *, version: str) ->
             if not applies_to(name, k, rec["lubrication"]):
                 continue
             quantity = base_name(name)
-            scale = rec.get("viscosity_factor", 1.0) if quantity == "viscosity" else 1.0
+            scale = rec.get("viscosity_factor", 1.0) if quantity == VISCOSITY else 1.0
             rows.append(
                 {
                     "fit": unit.name,

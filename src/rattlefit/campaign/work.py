@@ -20,6 +20,7 @@ from ..config import quietly_configure
 from ..errors import RattlefitError
 from ..physics.geometry import TABLE2
 from ..problem.options import FitOptions
+from ..quantities import DRAG_TORQUE, FILM, MIN_FILM, STIFFNESS_SCALE, VISCOSITY
 from ..version import __version__
 from .manifest import Unit
 from .options import CampaignOptions
@@ -27,11 +28,11 @@ from .options import CampaignOptions
 #: The parameters whose truth a synthetic recording's ``/truth`` group holds, as the table
 #: names them.
 TRUTH_NAMES = (
-    "film_half_length",
-    "drag_torque",
-    "viscosity",
-    "min_film",
-    "stiffness_scale",
+    FILM,
+    DRAG_TORQUE,
+    VISCOSITY,
+    MIN_FILM,
+    STIFFNESS_SCALE,
     "backlash",
 )
 

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from ..quantities import DRAG_TORQUE, FILM, MIN_FILM, STIFFNESS_SCALE, VISCOSITY
 from .common import (
     clean_errors,
     seed_option,
@@ -105,7 +106,7 @@ def import_(source: Path, channel_map: Path, output: Path) -> None:
 )
 @click.option(
     "--film-half-length-mm",
-    "film_half_length",
+    FILM,
     type=float,
     required=True,
     help="Oil-film half-length a, mm (0 for dry).",
@@ -116,7 +117,7 @@ def import_(source: Path, channel_map: Path, output: Path) -> None:
 )
 @click.option(
     "--min-film-um",
-    "min_film",
+    MIN_FILM,
     type=float,
     default=2.0,
     show_default=True,
@@ -161,7 +162,7 @@ def simulate(**o) -> None:
         oil = PAPER_OIL
     else:
         raise click.UsageError("give --pair I|II or --template FILE")
-    mu = o["viscosity"] or dynamic_viscosity(
+    mu = o[VISCOSITY] or dynamic_viscosity(
         operating.oil_temperature_c,
         oil.viscosity_40c_cst,
         oil.viscosity_100c_cst,
@@ -170,14 +171,14 @@ def simulate(**o) -> None:
     from ..physics.model import RattleParams
     from ..quantities import QUANTITIES
 
-    film, h_min = (QUANTITIES[n] for n in ("film_half_length", "min_film"))
+    film, h_min = (QUANTITIES[n] for n in (FILM, MIN_FILM))
     params = RattleParams(
-        o["film_half_length"] / film.scale,
-        o["drag_torque"],
+        o[FILM] / film.scale,
+        o[DRAG_TORQUE],
         mu,
         geometry.backlash,
-        min_film=o["min_film"] / h_min.scale,
-        stiffness_scale=o["stiffness_scale"],
+        min_film=o[MIN_FILM] / h_min.scale,
+        stiffness_scale=o[STIFFNESS_SCALE],
     )
     click.echo(f"simulating {o['duration']:g} s (seed {o['seed']}) …", err=True)
     rec, truth = synthesize(

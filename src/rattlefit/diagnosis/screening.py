@@ -15,6 +15,7 @@ import numpy as np
 from ..physics.effects import effect_class
 from ..problem.parameters import Z_END
 from ..problem.problem import Problem
+from ..quantities import DRAG_TORQUE
 from .trial import Trial, costs, validated
 
 #: Where each effect field is screened before the fit: decades below the top of its range
@@ -96,7 +97,7 @@ def film_indices(problem) -> list[int]:
 def free_indices(problem) -> list[int]:
     """Where the film half-length(s) and the drag torque sit in the problem's coordinates."""
     names = [sp.name for sp in problem.specs]
-    return [*film_indices(problem), names.index("drag_torque")]
+    return [*film_indices(problem), names.index(DRAG_TORQUE)]
 
 
 def free_alternatives(z: np.ndarray, problem) -> np.ndarray:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..quantities import FILM, base_name, index_of
+from ..quantities import DRAG_TORQUE, FILM, VISCOSITY, base_name, index_of
 
 #: Advice per parameter (base name, lubrication of its film or None): what would pin it.
 ADVICE = {
@@ -16,11 +16,11 @@ ADVICE = {
         "under oil jet the film saturates: fit it jointly with a boundary recording of the "
         "same pair"
     ),
-    ("drag_torque", None): (
+    (DRAG_TORQUE, None): (
         "a longer recording, or a backlash sweep (recordings at other centre distances) "
         "fitted jointly"
     ),
-    ("viscosity", None): (
+    (VISCOSITY, None): (
         "the oil's viscosity at the test temperature, as a prior "
         "(--prior viscosity_scale=1:0.05 when the stated value is good to 5 %)"
     ),

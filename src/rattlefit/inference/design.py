@@ -37,7 +37,7 @@ from ..physics.model import RattleParams
 from ..problem.forward import evaluate
 from ..problem.options import FitOptions
 from ..problem.problem import build_problem, release_states
-from ..quantities import FILM
+from ..quantities import DRAG_TORQUE, FILM
 from ..simulation.synthetic import synthesize
 from .result import FitResult
 
@@ -284,7 +284,7 @@ def suggest(
         rows.append(
             Planned(label, interval_factors(union, total + prior_information(problem, union)))
         )
-    rows[1:] = sorted(rows[1:], key=lambda r: r.factors.get("drag_torque", math.inf))
+    rows[1:] = sorted(rows[1:], key=lambda r: r.factors.get(DRAG_TORQUE, math.inf))
     return rows
 
 

@@ -29,6 +29,7 @@ from ..physics.model import DEFAULT_MIN_FILM, film_saturation, squeeze_momentum
 from ..problem.options import FitOptions
 from ..problem.parameters import ParameterSpec, momentum_name
 from ..problem.problem import Problem
+from ..quantities import MIN_FILM, VISCOSITY_SCALE
 from .laplace import Laplace
 from .profile import profile_interval, profile_stage
 from .result import ParameterEstimate, estimate
@@ -53,9 +54,9 @@ def group_spec(problem: Problem, film: str) -> ParameterSpec:
     """The squeeze momentum's :class:`ParameterSpec` for ``film`` (N s): the film's range
     carried over at the viscosity factor's and ``h_min``'s prior medians."""
     specs = {s.name: s for s in problem.specs}
-    a, h = specs[film], specs["min_film"]
+    a, h = specs[film], specs[MIN_FILM]
     mu, radius, width = flanks(problem, film)
-    mu *= specs["viscosity_scale"].center or 1.0
+    mu *= specs[VISCOSITY_SCALE].center or 1.0
     h_c = h.center or DEFAULT_MIN_FILM
     return ParameterSpec(
         momentum_name(film),
@@ -80,7 +81,7 @@ def group_value(problem: Problem, z, film: str) -> float:
     hold ``film``)."""
     v = {s.name: float(s.value(z[i])) for i, s in enumerate(problem.specs)}
     mu, radius, width = flanks(problem, film)
-    return float(squeeze_momentum(v[film], v["viscosity_scale"] * mu, v["min_film"], radius, width))
+    return float(squeeze_momentum(v[film], v[VISCOSITY_SCALE] * mu, v[MIN_FILM], radius, width))
 
 
 def log_slopes(problem: Problem, z, film: str) -> dict[str, float]:
@@ -89,9 +90,9 @@ def log_slopes(problem: Problem, z, film: str) -> dict[str, float]:
     (3, 1, −2 for a short film)."""
     v = {s.name: float(s.value(z[i])) for i, s in enumerate(problem.specs)}
     _, radius, _ = flanks(problem, film)
-    y = v[film] / math.sqrt(radius * v["min_film"])
+    y = v[film] / math.sqrt(radius * v[MIN_FILM])
     k = 2.0 * y**3 / ((1.0 + y * y) ** 2 * float(film_saturation(y))) if y > 1e-3 else 3.0
-    return {film: k, "viscosity_scale": 1.0, "min_film": -0.5 * (1.0 + k)}
+    return {film: k, VISCOSITY_SCALE: 1.0, MIN_FILM: -0.5 * (1.0 + k)}
 
 
 def to_group(problem: Problem, grouped: Problem, i: int, z, cov) -> tuple[np.ndarray, np.ndarray]:

@@ -52,6 +52,7 @@ from ..problem.forward import evaluate
 from ..problem.options import FitOptions
 from ..problem.parameters import Z_END, ParameterSpec
 from ..problem.problem import problem_from
+from ..quantities import VISCOSITY, VISCOSITY_SCALE
 from ..reproducibility import platform_info
 from . import arviz_io
 from .identify import identify
@@ -400,9 +401,9 @@ def _summarise(sampler, specs, viscosity, discard):
     names, units = [], []
     for i, s in enumerate(specs):
         values[..., i] = s.value(np.asarray(z[..., i]))
-        if s.name == "viscosity_scale":
+        if s.name == VISCOSITY_SCALE:
             values[..., i] *= viscosity
-            names.append("viscosity")
+            names.append(VISCOSITY)
             units.append("Pa s")
         else:
             names.append(s.name)

@@ -17,6 +17,7 @@ from ..physics.model import RattleParams
 from ..problem.options import FitOptions
 from ..problem.parameters import MOMENTUM, ParameterSpec
 from ..problem.problem import Problem, problem_from
+from ..quantities import DRAG_TORQUE, VISCOSITY, VISCOSITY_SCALE
 from .advice import what_would_pin
 from .noise import NoiseModel
 from .outcome import SearchEnd
@@ -89,15 +90,7 @@ class Estimates:
 
     def rattle_params(self, k: int = 0) -> RattleParams:
         """The MAP :class:`RattleParams` of recording ``k``."""
-        v = self.map_params[k]
-        return RattleParams(
-            v["film_half_length"],
-            v["drag_torque"],
-            v["viscosity"],
-            v["backlash"],
-            min_film=v["min_film"],
-            stiffness_scale=v["stiffness_scale"],
-        )
+        return RattleParams.from_dict(self.map_params[k])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -431,7 +424,7 @@ def estimate(spec: ParameterSpec, z: float, lo_z: float, hi_z: float) -> Paramet
 
 #: The fitted coordinates the results report under another quantity's name: the viscosity
 #: factor is reported as the viscosity (Pa s, at the first recording's temperature).
-REPORTED_AS = {"viscosity_scale": "viscosity"}
+REPORTED_AS = {VISCOSITY_SCALE: VISCOSITY}
 
 
 def reported_name(name: str) -> str:
@@ -447,10 +440,10 @@ def estimates_of(
     factor converted to Pa s at the first recording's temperature), then the nuisances; each
     that is not identified says what would pin it, given the recordings' ``lubrications``."""
     found = {s.name: estimate(s, z[i], z_lo[i], z_hi[i]) for i, s in enumerate(problem.specs)}
-    vs = found.pop("viscosity_scale")
+    vs = found.pop(VISCOSITY_SCALE)
     mu0 = float(np.asarray(problem.viscosities)[0])
-    found[reported_name("viscosity_scale")] = ParameterEstimate(
-        reported_name("viscosity_scale"),
+    found[reported_name(VISCOSITY_SCALE)] = ParameterEstimate(
+        reported_name(VISCOSITY_SCALE),
         "Pa s",
         vs.estimate * mu0,
         vs.lower * mu0,
@@ -462,7 +455,7 @@ def estimates_of(
         k: dataclasses.replace(p, would_pin=what_would_pin(k, list(lubrications), p.identified))
         for k, p in found.items()
     }
-    first = [*dict.fromkeys(problem.films), "drag_torque", "viscosity"]
+    first = [*dict.fromkeys(problem.films), DRAG_TORQUE, VISCOSITY]
     ordered = {k: found[k] for k in first}
     ordered.update({k: v for k, v in found.items() if k not in ordered})
     return ordered
@@ -473,7 +466,7 @@ def with_groups(
 ) -> dict[str, ParameterEstimate]:
     """``found`` (:func:`estimates_of`) with the squeeze-film groups after the viscosity."""
     names = list(found)
-    cut = names.index("viscosity") + 1
+    cut = names.index(VISCOSITY) + 1
     return {
         **{k: found[k] for k in names[:cut]},
         **groups,

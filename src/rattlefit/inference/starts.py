@@ -13,6 +13,7 @@ from scipy.stats import qmc
 
 from ..problem.parameters import ParameterSpec
 from ..problem.problem import Problem
+from ..quantities import DRAG_TORQUE
 
 #: Where the starting points of (a, T_b) are spread (log-uniformly), m and N m.
 START_RANGES = ((5e-6, 2e-3), (5e-3, 0.2))  # (each film half-length, drag torque)
@@ -45,9 +46,9 @@ def starting_points(
     """
     specs = problem.specs
     spread = [
-        (i, START_RANGES[s.name == "drag_torque"])
+        (i, START_RANGES[s.name == DRAG_TORQUE])
         for i, s in enumerate(specs)
-        if s.name == "drag_torque" or s.name in problem.films
+        if s.name == DRAG_TORQUE or s.name in problem.films
     ]
     n = n_starts or START_POINTS * 2 ** (len(spread) - 2)
     starts = sobol_points(specs, spread, n, rng)

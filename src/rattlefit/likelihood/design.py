@@ -17,6 +17,7 @@ from scipy.stats import qmc
 
 from ..problem.forward import evaluate_rows
 from ..problem.problem import Problem
+from ..quantities import DRAG_TORQUE
 
 #: A parameter with a prior is designed over its prior's central ± this many sd (in log),
 #: clipped to its range; one without (a film half-length, the drag torque) over its range.
@@ -81,7 +82,7 @@ def simulate_design(
     y0 = np.zeros((n, 2))
     y0[:, 0] = rng.uniform(-0.9, 0.9, size=n) * half_gap
     phase = rng.uniform(size=(n, 2))
-    order = np.argsort(z[:, problem.index("drag_torque")], kind="stable")
+    order = np.argsort(z[:, problem.index(DRAG_TORQUE)], kind="stable")
     rows = (
         z[order],
         np.full(n, recording),

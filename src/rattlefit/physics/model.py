@@ -44,6 +44,7 @@ from scipy import special
 
 from ..config import require_x64
 from ..errors import ParameterError
+from ..quantities import QUANTITIES
 from ..util import array_namespace, concrete
 from .drive import Drive
 from .elementary import arctan
@@ -169,15 +170,31 @@ class RattleParams(eqx.Module):
         """Field name → numpy value (SI units)."""
         return {k: np.asarray(getattr(self, k)) for k in PARAM_UNITS}
 
+    @classmethod
+    def from_dict(cls, values) -> RattleParams:
+        """The inverse of :meth:`as_dict`: field name → value (SI); ``min_film`` and
+        ``stiffness_scale`` may be left out (their defaults), other names are ignored."""
+        optional = {k: values[k] for k in ("min_film", "stiffness_scale") if k in values}
+        return cls(
+            values["film_half_length"],
+            values["drag_torque"],
+            values["viscosity"],
+            values["backlash"],
+            **optional,
+        )
 
-#: Parameter names with their SI units.
+
+#: Parameter names with their SI units (:data:`rattlefit.quantities.QUANTITIES`' units).
 PARAM_UNITS = {
-    "film_half_length": "m",
-    "drag_torque": "N m",
-    "viscosity": "Pa s",
-    "min_film": "m",
-    "stiffness_scale": "1",
-    "backlash": "m",
+    name: QUANTITIES[name].unit
+    for name in (
+        "film_half_length",
+        "drag_torque",
+        "viscosity",
+        "min_film",
+        "stiffness_scale",
+        "backlash",
+    )
 }
 
 

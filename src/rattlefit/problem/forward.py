@@ -15,6 +15,7 @@ import equinox as eqx
 import jax
 import numpy as np
 
+from ..quantities import DRAG_TORQUE
 from ..util import array_namespace
 from .problem import Problem
 
@@ -81,7 +82,7 @@ def evaluate(problem: Problem, zs, y0=None, realisations=None) -> np.ndarray:
     m = problem.y0.shape[1] if y0 is None else y0.shape[1]
     if realisations is not None:
         m = len(realisations)
-    order = np.argsort(zs[:, problem.index("drag_torque")], kind="stable")
+    order = np.argsort(zs[:, problem.index(DRAG_TORQUE)], kind="stable")
     rows = problem.rows(zs[order], None if y0 is None else np.asarray(y0), realisations)
     out = evaluate_rows(problem, rows).reshape(zs.shape[0], problem.n_rec, m, -1)
     return out[np.argsort(order)]

@@ -26,8 +26,19 @@ import jax.numpy as jnp
 from scipy.special import expit
 
 from ..errors import RattlefitError
-from ..physics.model import DEFAULT_MIN_FILM
-from ..quantities import FILM, base_name, quantity
+from ..physics.model import DEFAULT_MIN_FILM, PARAM_UNITS
+from ..quantities import (
+    DRAG_TORQUE,
+    FILM,
+    MIN_FILM,
+    MOMENTUM,
+    QUANTITIES,
+    STIFFNESS_SCALE,
+    VISCOSITY,
+    VISCOSITY_SCALE,
+    base_name,
+    quantity,
+)
 from ..util import array_namespace
 
 if TYPE_CHECKING:
@@ -49,8 +60,12 @@ class ParameterSpec:
     The value is ``lower · (upper/lower)^sigmoid(z)``. With ``center`` and ``log_sd`` the
     residual gets the prior row ``(log v − log center) / log_sd``. ``role`` is one of
     :data:`ROLES`; left empty, a parameter with a prior is a nuisance and one without is
-    physical. Raises :class:`~rattlefit.errors.RattlefitError` for an empty range or an
-    unknown role.
+    physical. ``scales`` names the :class:`~rattlefit.physics.model.RattleParams` field the
+    parameter multiplies, for a factor (``viscosity_scale`` scales ``viscosity``); how the
+    others reach the model is :meth:`~rattlefit.problem.space.ParameterSpace.rattle_params`.
+    ``unit`` is SI, the registry's (:mod:`rattlefit.quantities`) for a name it knows. Raises
+    :class:`~rattlefit.errors.RattlefitError` for an empty range, an unknown role, a unit the
+    registry contradicts or an unknown ``scales``.
     """
 
     name: str
@@ -61,10 +76,21 @@ class ParameterSpec:
     log_sd: float | None = None
     fd_log_step: float = 0.15
     role: str = ""
+    scales: str | None = None
 
     def __post_init__(self):
         if not (0 < self.lower < self.upper):
             raise RattlefitError(f"parameter {self.name}: need 0 < lower < upper")
+        known = QUANTITIES.get(base_name(self.name))
+        if known is not None and known.unit != self.unit:
+            raise RattlefitError(
+                f"parameter {self.name}: unit {self.unit!r}, but {known.name} is in {known.unit!r}"
+            )
+        if self.scales is not None and self.scales not in PARAM_UNITS:
+            raise RattlefitError(
+                f"parameter {self.name}: scales {self.scales!r}, which is not one of "
+                f"{', '.join(PARAM_UNITS)}"
+            )
         if not self.role:
             object.__setattr__(self, "role", "nuisance" if self.log_sd is not None else "physical")
         if self.role not in ROLES:
@@ -109,11 +135,6 @@ def film_names(lubrications: Sequence[str]) -> tuple[str, ...]:
     return tuple(f"{FILM}[{lub}]" for lub in lubrications)
 
 
-#: Name of the squeeze-film group's coordinate, the squeeze film's momentum per approach
-#: (:mod:`rattlefit.inference.group`).
-MOMENTUM = "squeeze_momentum"
-
-
 def momentum_name(film: str) -> str:
     """The squeeze-film group's name for the film half-length ``film``:
     ``film_half_length`` → ``squeeze_momentum``, ``film_half_length[boundary]`` →
@@ -137,10 +158,19 @@ def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec
     physical = {"fd_log_step": 0.2, "role": "physical"}
     specs = [
         *(ParameterSpec(n, "m", 1e-6, 5e-3, **physical) for n in dict.fromkeys(films)),
-        ParameterSpec("drag_torque", "N m", 2e-3, 0.5, fd_log_step=0.15, role="physical"),
-        ParameterSpec("viscosity_scale", "1", 0.2, 5.0, center=1.0, log_sd=0.25, fd_log_step=0.15),
+        ParameterSpec(DRAG_TORQUE, "N m", 2e-3, 0.5, fd_log_step=0.15, role="physical"),
         ParameterSpec(
-            "stiffness_scale",
+            VISCOSITY_SCALE,
+            "1",
+            0.2,
+            5.0,
+            center=1.0,
+            log_sd=0.25,
+            fd_log_step=0.15,
+            scales=VISCOSITY,
+        ),
+        ParameterSpec(
+            STIFFNESS_SCALE,
             "1",
             0.3,
             3.0,
@@ -149,7 +179,7 @@ def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec
             fd_log_step=0.15,
         ),
         ParameterSpec(
-            "min_film", "m", 0.5e-6, 20e-6, center=DEFAULT_MIN_FILM, log_sd=0.7, fd_log_step=0.2
+            MIN_FILM, "m", 0.5e-6, 20e-6, center=DEFAULT_MIN_FILM, log_sd=0.7, fd_log_step=0.2
         ),
     ]
     for k, rig in enumerate(rigs):
@@ -168,26 +198,23 @@ def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec
             )
         )
     if VISCOSITY in priors and rigs:
-        priors = {**priors, "viscosity_scale": viscosity_prior(priors[VISCOSITY], rigs[0])}
+        priors = {**priors, VISCOSITY_SCALE: viscosity_prior(priors[VISCOSITY], rigs[0])}
     return tuple(priors.get(s.name, s) for s in specs)
 
 
-#: The name under which a prior on the viscosity is given in Pa s (at the first recording's
-#: oil temperature; the fit's coordinate is the factor ``viscosity_scale`` on the oil's μ).
-VISCOSITY = "viscosity"
 #: The nuisance parameters: the recording-independent parameters of :func:`default_specs`
 #: that are fitted with a prior and not profiled.
 NUISANCES = tuple(s.name for s in default_specs([], {}) if s.nuisance)
 #: Every name a prior can be given under (:func:`parameter_prior`): the physical parameters
 #: (a film half-length, also as ``film_half_length[lubrication]``), the viscosity in Pa s
 #: and the nuisances.
-PRIORABLE = (FILM, "drag_torque", VISCOSITY, *NUISANCES)
+PRIORABLE = (FILM, DRAG_TORQUE, VISCOSITY, *NUISANCES)
 
 
 def viscosity_prior(spec: ParameterSpec, rig: RigSetup) -> ParameterSpec:
     """A prior on the viscosity in Pa s (``spec``, named :data:`VISCOSITY`) as the prior of
     the factor ``viscosity_scale`` on the oil's μ at ``rig``'s oil temperature."""
-    (scale,) = (s for s in default_specs([], {}) if s.name == "viscosity_scale")
+    (scale,) = (s for s in default_specs([], {}) if s.name == VISCOSITY_SCALE)
     return dataclasses.replace(scale, center=spec.center / rig.viscosity, log_sd=spec.log_sd)
 
 

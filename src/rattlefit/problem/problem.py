@@ -30,10 +30,10 @@ from ..io.recording import Recording
 from ..physics.model import (
     Effect,
     RattleModel,
-    RattleParams,
     film_for_squeeze_momentum,
     share_stiffness_tables,
 )
+from ..quantities import DRAG_TORQUE, MIN_FILM, VISCOSITY_SCALE
 from ..rig import RigSetup, setup
 from ..simulation.solve import (
     absolute_tolerances,
@@ -44,6 +44,7 @@ from ..simulation.solve import (
 from ..util import array_namespace
 from .options import FitOptions
 from .parameters import VISCOSITY, default_specs, films_of, momentum_name
+from .space import ParameterSpace
 
 
 def _stack(trees):
@@ -93,9 +94,15 @@ class Problem(eqx.Module):
         """B, the number of band features: the first B of every feature vector."""
         return len(self.bands.centers)
 
+    @property
+    def space(self) -> ParameterSpace:
+        """The fitted parameters (:attr:`specs`, :attr:`films`) as a
+        :class:`~rattlefit.problem.space.ParameterSpace`."""
+        return ParameterSpace(self.specs, self.films)
+
     def index(self, name: str) -> int:
         """The index of parameter ``name`` in :attr:`specs`."""
-        return [s.name for s in self.specs].index(name)
+        return self.space.index(name)
 
     def film_of_group(self, values: dict, film: str):
         """The half-length of ``film`` (m) whose squeeze momentum
@@ -105,8 +112,8 @@ class Problem(eqx.Module):
         r = self.films.index(film)
         return film_for_squeeze_momentum(
             values[momentum_name(film)],
-            values["viscosity_scale"] * self.viscosities[r],
-            values["min_film"],
+            values[VISCOSITY_SCALE] * self.viscosities[r],
+            values[MIN_FILM],
             self.models.curvature_radius[r],
             self.models.axial_width[r],
         )
@@ -117,21 +124,13 @@ class Problem(eqx.Module):
         the ``a`` of that group at the undithered viscosity and ``h_min``
         (:meth:`film_of_group`), dithered by the group's column: each realisation is the
         same as with the film's own coordinate."""
-        raw = {s.name: s.value(z[i]) for i, s in enumerate(self.specs)}
+        space = self.space
+        raw = space.values(z)
         v = {s.name: raw[s.name] * jnp.exp(dither[i]) for i, s in enumerate(self.specs)}
-        for film in dict.fromkeys(self.films):
-            if film not in v:  # the film's coordinate is its squeeze-film group
-                v[film] = self.film_of_group(raw, film) * jnp.exp(
-                    dither[self.index(momentum_name(film))]
-                )
-        return RattleParams(
-            jnp.stack([v[name] for name in self.films])[r],
-            v["drag_torque"],
-            v["viscosity_scale"] * self.viscosities[r],
-            jnp.stack([v[f"backlash[{k}]"] for k in range(self.n_rec)])[r],
-            min_film=v["min_film"],
-            stiffness_scale=v["stiffness_scale"],
-        )
+        for film, group in space.group_names().items():
+            # the film's coordinate is its squeeze-film group
+            v[film] = self.film_of_group(raw, film) * jnp.exp(dither[space.index(group)])
+        return space.rattle_params(v, r, self.viscosities)
 
     def effects_at(self, z) -> tuple[Effect, ...]:
         """:attr:`effects` with their fitted fields set from ``z``."""
@@ -393,8 +392,8 @@ def dither_draws(specs, films, n: int, dither: float, rng) -> tuple[np.ndarray, 
     (n, 2), uniform in [0, 1)."""
     weight = {
         **dict.fromkeys([*films, *map(momentum_name, films)], 1.0),
-        "drag_torque": 1.0,
-        "viscosity_scale": 0.5,
+        DRAG_TORQUE: 1.0,
+        VISCOSITY_SCALE: 0.5,
     }
     scale = np.array([weight.get(sp.name, 0.0) for sp in specs])
     offsets = rng.normal(size=(n, len(specs))) * scale * dither

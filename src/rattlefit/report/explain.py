@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from ..inference.advice import film_lubrication
 from ..inference.result import IDENTIFIED_RATIO, identified_ratio
-from ..quantities import FILM, base_name, display, quantity
+from ..quantities import DRAG_TORQUE, FILM, VISCOSITY, base_name, display, quantity
 
 
 def meaning(name: str) -> str:
@@ -74,7 +74,7 @@ def _why_one_sided(base: str, lub: str | None, bound: str) -> str:
         )
     if base == FILM and bound == "upper":
         return "the interval runs down to a = 0: dry flanks (no film) fit the data as well."
-    if base == "drag_torque" and bound == "upper":
+    if base == DRAG_TORQUE and bound == "upper":
         return (
             "the interval runs down to T_b = 0: the spectrum is explained as well without "
             "bearing drag."
@@ -122,7 +122,7 @@ def explain(name: str, p: dict, lubrications: list[str]) -> str:
             "∝ μ·a³/h_min² for a short film), so a is known only as well as h_min and μ are "
             "(a prior on h_min, --prior min_film=…, sharpens it)."
         )
-    elif base == "viscosity" and "boundary" in lubrications:
+    elif base == VISCOSITY and "boundary" in lubrications:
         text += (
             " With a boundary film it trades against a and h_min along μ·a³/h_min², the "
             "group the spectrum pins."

@@ -9,13 +9,13 @@ from ..confidence import CHI2_1_95, Z95_ONE_SIDED
 from ..diagnosis.result import MISSED_Z, Diagnosis
 from ..inference.posterior import Posterior
 from ..inference.result import FitResult, below_optimum, identified_ratio
-from ..quantities import FILM, base_name, display
+from ..quantities import DRAG_TORQUE, FILM, MOMENTUM, TARGETS, VISCOSITY_SCALE, base_name, display
 from .explain import below_optimum_sentence
 from .wording import finding_size, search_sentence, verdict_sentence
 
 #: The parameters the table shows first: the films, the drag torque, the viscosity and the
 #: squeeze momenta; the nuisances follow in a block of their own.
-PHYSICAL = (FILM, "drag_torque", "viscosity", "squeeze_momentum")
+PHYSICAL = (*TARGETS, MOMENTUM)
 
 
 def is_physical(name: str) -> bool:
@@ -269,7 +269,7 @@ def format_diagnosis(diag: Diagnosis) -> str:
 
 #: Columns of :func:`suggestion_table`: the films first, then the drag torque and the
 #: viscosity, the parameters a test is planned for.
-PLANNED_COLUMNS = ("drag_torque", "viscosity_scale")
+PLANNED_COLUMNS = (DRAG_TORQUE, VISCOSITY_SCALE)
 
 
 def suggestion_table(plan: dict) -> list[tuple[str, ...]]:

@@ -14,6 +14,7 @@ import numpy as np
 
 from ...physics.model import equivalent_viscosity
 from ...problem.problem import Problem
+from ...quantities import MIN_FILM, VISCOSITY_SCALE
 from .curves import Valley
 
 #: The gaps, in multiples of ``h_min``, at which :func:`film_valley` keeps the squeeze
@@ -30,9 +31,9 @@ def film_valley(problem: Problem) -> Valley | None:
     range. Other parameters get no guesses."""
     specs = problem.specs
     names = [s.name for s in specs]
-    if "viscosity_scale" not in names or "min_film" not in names:
+    if VISCOSITY_SCALE not in names or MIN_FILM not in names:
         return None
-    i_mu, i_h = names.index("viscosity_scale"), names.index("min_film")
+    i_mu, i_h = names.index(VISCOSITY_SCALE), names.index(MIN_FILM)
     radii = np.asarray(problem.models.curvature_radius).reshape(-1)
     radius = {name: float(radii[problem.films.index(name)]) for name in set(problem.films)}
     mu_spec = specs[i_mu]
