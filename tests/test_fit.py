@@ -31,6 +31,7 @@ from rattlefit.inference.least_squares import (
     StallingLevenbergMarquardt,
     levenberg_marquardt,
     lm_steps,
+    moves,
 )
 from rattlefit.inference.noise import noise_model
 from rattlefit.inference.profile import SCREEN_FACTOR, ProfileCosts
@@ -750,8 +751,9 @@ def test_levenberg_marquardt_stops_once_its_trial_steps_keep_being_rejected():
 def test_levenberg_marquardt_stepped_from_python_takes_optimistix_own_steps():
     # the fit steps optimistix's solver from Python, simulating the residual and Jacobian
     # between steps; on closed-form residuals its iterates, step counts and results must be
-    # optimistix.least_squares's own: Rosenbrock's valley (converged, and cut at a step
-    # limit), and the residual whose every trial step is rejected (stalled)
+    # optimistix.least_squares's own: Rosenbrock's valley (converged, and cut at a budget of
+    # moves: optimistix's run cut at the same number of steps), and the residual whose every
+    # trial step is rejected (stalled)
     y0 = jnp.array([-1.2, 1.0])
 
     def rosenbrock(y, _=None):
@@ -763,14 +765,18 @@ def test_levenberg_marquardt_stepped_from_python_takes_optimistix_own_steps():
     runs = {}
     for residual, max_steps in ((rosenbrock, 100), (rosenbrock, 5), (spiky, 12)):
         solver = StallingLevenbergMarquardt(rtol=1e-8, atol=1e-8)
-        ref = optx.least_squares(residual, solver, y0, max_steps=max_steps, throw=False)
 
         def jacobian_at(z, residual=residual):
             z = jnp.asarray(z)
             return np.asarray(residual(z)), np.asarray(jax.jacfwd(residual)(z))
 
         z, steps, result, state = levenberg_marquardt(jacobian_at, solver, y0, max_steps)
+        cut = result != optx.RESULTS.successful
+        limit = steps if cut else max_steps
+        ref = optx.least_squares(residual, solver, y0, max_steps=limit, throw=False)
         assert steps == int(ref.stats["num_steps"])
+        if cut:  # by its budget: it made that many moves
+            assert moves(state) == max_steps
         assert result == ref.result
         assert bool(StallingLevenbergMarquardt.stalled(state)) == bool(
             StallingLevenbergMarquardt.stalled(ref.state)
@@ -782,6 +788,36 @@ def test_levenberg_marquardt_stepped_from_python_takes_optimistix_own_steps():
     z, result = runs["rosenbrock", 100]
     np.testing.assert_allclose(z, [1.0, 1.0], atol=1e-6)
     assert result == optx.RESULTS.successful
+
+
+def test_a_budget_of_moves_is_spent_moving_not_on_the_trials_the_trust_region_rejects():
+    # r(y) = y − (1, 2), raised by a wall 0.3 from the start in y₀ (a ridge of a rough cost
+    # beside its start): the first trial steps reach past the wall and are rejected, the trust
+    # region shrinks, and shorter steps are accepted. Counting every trial, a budget of three
+    # steps returned the start; counted in moves, every budget moves, stops at the wall by
+    # stalling, and never accepts a point of higher cost
+    y0 = np.array([3.0, 0.0])
+
+    def cost_of(z):
+        return float(np.sum(jacobian_at(z)[0] ** 2))
+
+    def jacobian_at(z):
+        z = np.asarray(z, dtype=float)
+        wall = 10.0 * max(0.0, abs(z[0] - y0[0]) - 0.3)
+        return np.array([z[0] - 1.0 + wall, z[1] - 2.0]), np.eye(2)
+
+    solver = StallingLevenbergMarquardt(rtol=1e-2, atol=1e-2)
+    ends = []
+    for budget in (1, 2, 3):
+        z, steps, result, state = levenberg_marquardt(jacobian_at, solver, y0, budget)
+        assert moves(state) == budget and steps > budget + 1  # rejected trials came first
+        assert result == optx.RESULTS.nonlinear_max_steps_reached
+        assert cost_of(z) < cost_of(y0) and abs(z[0] - y0[0]) <= 0.3
+        ends.append(cost_of(z))
+    assert ends == sorted(ends, reverse=True)  # each further move lowers the cost
+    z, steps, result, state = levenberg_marquardt(jacobian_at, solver, y0, 20)
+    assert result == optx.RESULTS.successful and StallingLevenbergMarquardt.stalled(state)
+    assert moves(state) < 20 and abs(z[0] - y0[0]) <= 0.3 + 1e-12
 
 
 def test_debiased_information_removes_the_jacobian_noise():

@@ -25,8 +25,8 @@ from ..problem.problem import Problem
 from .noise import band_sigma, ensemble_features
 from .starts import prior_centre
 
-#: Levenberg–Marquardt steps per start and recording when ``FitOptions.max_iterations`` is
-#: None: each recording adds its own rugged cost.
+#: Levenberg–Marquardt moves (accepted steps) per start and recording when
+#: ``FitOptions.max_iterations`` is None: each recording adds its own rugged cost.
 LM_STEPS = 8
 #: Consecutive rejected trial steps after which a run stops (:class:`StallingLevenbergMarquardt`):
 #: the trust region has shrunk by 4⁻⁴ without a lower cost, so the point is a minimum at the
@@ -67,8 +67,11 @@ def levenberg_marquardt(jacobian_at: Callable, solver, z0, max_steps: int):
     simulated by the fit's one compiled program), and the step sees them as
     :func:`linearised_residual`. The iteration is optimistix's own: each step linearises the
     residual at ``state.y_eval`` and accepts or rejects that point; the loop, like
-    ``optimistix.least_squares``'s, ends once ``solver.terminate`` says so, the iterate is not
-    finite, or after ``max_steps``. Keeping the simulation outside the solver's compiled step
+    ``optimistix.least_squares``'s, ends once ``solver.terminate`` says so or the iterate is not
+    finite, and after ``max_steps`` moves (:func:`moves`: accepted steps). Rejected trials,
+    which shrink the trust region, do not count: a run that cannot move ends by stalling
+    (:data:`LM_REJECTIONS` in a row), so it makes at most that many trials a move, and a run
+    that ends at its budget has moved. Keeping the simulation outside the solver's compiled step
     means one compiled simulator (and one set of realisations) for every stage of a fit.
 
     Returns ``(z, steps, result, state)``: the last accepted point, the steps taken, an
@@ -92,7 +95,7 @@ def levenberg_marquardt(jacobian_at: Callable, solver, z0, max_steps: int):
             result = optx.RESULTS.nonfinite
         if bool(done) or result != optx.RESULTS.successful:
             break
-        if steps == max_steps:
+        if moves(state) == max_steps:
             result = optx.RESULTS.nonlinear_max_steps_reached
             break
         if steps:
@@ -103,14 +106,20 @@ def levenberg_marquardt(jacobian_at: Callable, solver, z0, max_steps: int):
     return np.asarray(z), steps, result, state
 
 
+def moves(state) -> int:
+    """The accepted steps of a Gauss–Newton ``state`` that moved the iterate (optimistix counts
+    the start's own evaluation as its first accepted step)."""
+    return max(int(state.num_accepted_steps) - 1, 0)
+
+
 #: The static part of :func:`levenberg_marquardt`'s initial solver state, by (solver type,
 #: residual length, parameters): reused so that :func:`lm_step` is traced once a shape.
 _LM_STATIC: dict = {}
 
 
 def lm_steps(options: FitOptions, n_recordings: int) -> int:
-    """Levenberg–Marquardt steps per start: ``options.max_iterations``, or :data:`LM_STEPS` per
-    recording when it is None."""
+    """Levenberg–Marquardt moves (accepted steps) per start: ``options.max_iterations``, or
+    :data:`LM_STEPS` per recording when it is None."""
     return options.max_iterations or LM_STEPS * n_recordings
 
 
