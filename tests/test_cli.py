@@ -12,6 +12,7 @@ import pytest
 from click.testing import CliRunner
 
 from rattlefit.cli import main
+from rattlefit.documents import FIT
 from rattlefit.io.recording import read_recording, read_truth
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -256,6 +257,7 @@ def test_report_finds_recordings_beside_the_fit_and_writes_html(tmp_path):
     f = np.geomspace(5.0, 4000.0, 30)
     measured = (-6.0 - 1.5 * np.log10(f / 5.0)).tolist()
     doc = {
+        **FIT.header(),
         "parameters": {
             "film_half_length": {
                 "unit": "m",

@@ -13,9 +13,9 @@ import pytest
 
 import rattlefit as rf
 from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
+from rattlefit.documents import FIT
 from rattlefit.errors import RattlefitError
 from rattlefit.inference.fit_document import read_fit
-from rattlefit.inference.result import FIT_VERSION
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.report import diagnosis_document
 
@@ -82,7 +82,7 @@ def test_a_document_that_is_not_a_saved_fit_or_of_other_recordings_is_refused(fi
     rec, result, path = fitted
     doc = result.to_json()
     for change, words in (
-        ({"format": None}, f"format: expected 'rattlefit.fit' version {FIT_VERSION}"),
+        ({"format": None}, f"format: expected 'rattlefit.fit' version {FIT.version}"),
         ({"state": None}, "state: not an object"),
     ):
         bad = tmp_path / "bad.json"

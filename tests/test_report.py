@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from rattlefit import FitOptions, FitResult
+from rattlefit.documents import DIAGNOSIS, FIT, POSTERIOR
 from rattlefit.inference.outcome import SearchEnd, SearchOutcome
 from rattlefit.inference.profile import profile_threshold
 from rattlefit.inference.result import (
@@ -340,6 +341,7 @@ def _handmade_fit(recording=BOUNDARY) -> dict:
     }
     keys = ("unit", "estimate", "lower", "upper", "identified", "bound")
     return {
+        **FIT.header(),
         "parameters": {n: {"name": n, **dict(zip(keys, v, strict=True))} for n, v in p.items()},
         "fit": {
             "chi2": 31.25,
@@ -381,6 +383,7 @@ def _handmade_posterior():
         dims={"log10_psd": ["recording", "band"]},
     )
     doc = {
+        **POSTERIOR.header(),
         "parameters": {
             n: {
                 "median": float(np.median(v)),
@@ -430,6 +433,7 @@ def test_report_with_a_diagnosis_gives_verdict_misfit_and_missed_bands():
     residuals = np.zeros((1, 30))
     residuals[0, 4] = 4.2
     diag = {
+        **DIAGNOSIS.header(),
         "verdict": "drive_ripple",
         "baseline": {"chi2": 80.0, "dof": 28},
         "band_centers_hz": fit["spectra"]["band_centers_hz"],
@@ -493,6 +497,12 @@ def test_report_refuses_bad_inputs_naming_them(tmp_path):
     post["sampler"]["recordings"] = ["elsewhere/other.h5"]
     with pytest.raises(RattlefitError, match=r"posterior: made on other\.h5"):
         write_report(out, fit=_handmade_fit(), posterior=post)
+    old = {**_handmade_fit(), "version": 1}
+    with pytest.raises(RattlefitError, match=r"fit: format: expected 'rattlefit\.fit' version 2"):
+        write_report(out, fit=old)
+    post, _ = _handmade_posterior()
+    with pytest.raises(RattlefitError, match=r"posterior: format: .*\(sample again"):
+        write_report(out, fit=_handmade_fit(), posterior={**post, "format": None})
     with pytest.raises(RattlefitError, match=r"nothing\.nc: no such file"):
         write_report(out, fit=_handmade_fit(), inference_data=tmp_path / "nothing.nc")
     assert list(tmp_path.iterdir()) == []

@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 from scipy import stats
 
+from ..documents import DIAGNOSIS
 from ..inference.result import FitResult
 from ..problem.options import unfinished_fit_advice
 from .cycle_gap import CycleGap
@@ -100,10 +101,11 @@ class Diagnosis:
         )
 
     def to_json(self) -> dict:
-        """The diagnosis as JSON (without the verdict's sentence:
-        :func:`rattlefit.report.diagnosis_document` adds it)."""
+        """The diagnosis as JSON (:data:`rattlefit.documents.DIAGNOSIS`; without the
+        verdict's sentence: :func:`rattlefit.report.diagnosis_document` adds it)."""
         v = self.verdict
         return {
+            **DIAGNOSIS.header(),
             "verdict": v.label,
             "verdict_kind": v.kind,
             "verdict_effects": list(v.effects),

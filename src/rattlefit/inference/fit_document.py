@@ -1,7 +1,7 @@
 """The fit's JSON document (``identify -o``) read back, validated, with its state.
 
 The document is ``FitResult.to_json()`` (:mod:`rattlefit.inference.result`): ``format``
-(``FIT_FORMAT``), ``version`` (``FIT_VERSION``), ``parameters``, ``fit``, ``spectra`` and
+(:data:`rattlefit.documents.FIT`), ``version``, ``parameters``, ``fit``, ``spectra`` and
 ``state``, the
 :class:`~rattlefit.inference.result.FittedState` that sampling and diagnosis start from (the
 optimum ``z`` and its Laplace covariance in the fit's coordinates, the noise model fixed at the
@@ -21,14 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..documents import FIT
 from ..errors import RattlefitError
 from ..io.recording import Recording, counts_sha256
 from ..problem.options import FitOptions
 from .noise import NoiseModel
 from .outcome import SearchEnd
 from .result import (
-    FIT_FORMAT,
-    FIT_VERSION,
     NOISE_ARRAYS,
     Estimates,
     FitResult,
@@ -85,12 +84,7 @@ def fit_of(doc, file: str = "<fit>") -> FitResult:
     """:func:`read_fit` of a document already parsed, ``file`` naming it in errors."""
     if not isinstance(doc, dict):
         raise RattlefitError(f"{file}: expected a JSON object written by rattlefit identify -o")
-    if doc.get("format") != FIT_FORMAT or doc.get("version") != FIT_VERSION:
-        raise RattlefitError(
-            f"{file}: format: expected {FIT_FORMAT!r} version {FIT_VERSION}, got "
-            f"{doc.get('format')!r} version {doc.get('version')!r} (identify again with this "
-            "rattlefit)"
-        )
+    FIT.check(doc, file)
     for key in ("parameters", "fit", "spectra", "state"):
         if not isinstance(doc.get(key), dict):
             problem = "missing" if key not in doc else "not an object"

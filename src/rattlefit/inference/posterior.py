@@ -44,6 +44,7 @@ import h5py
 import jax.numpy as jnp
 import numpy as np
 
+from ..documents import POSTERIOR
 from ..errors import RattlefitError
 from ..io.recording import Recording
 from ..likelihood.model import LearnedLikelihood, batch_chi2_terms
@@ -259,8 +260,10 @@ class Posterior:
         return arviz_io.save_netcdf(self, path, recordings, **kw)
 
     def to_json(self) -> dict:
-        """The ``--output`` document: credible intervals (SI) and the chain's diagnostics."""
+        """The ``--output`` document (:data:`rattlefit.documents.POSTERIOR`): credible
+        intervals (SI) and the chain's diagnostics."""
         return {
+            **POSTERIOR.header(),
             "parameters": {
                 n: {"median": m, "lower": lo, "upper": hi, "unit": u}
                 for (n, (m, lo, hi)), u in zip(self.intervals().items(), self.units, strict=True)

@@ -12,6 +12,7 @@ import numpy as np
 from scipy import stats
 
 from ..confidence import Z95
+from ..documents import FIT
 from ..io.recording import counts_sha256
 from ..physics.model import RattleParams
 from ..problem.options import FitOptions
@@ -252,15 +253,14 @@ class FitResult:
         return self.state.problem_for(recordings, self.spectra.sigma)
 
     def to_json(self) -> dict:
-        """The ``--output`` document (format :data:`FIT_FORMAT`, version :data:`FIT_VERSION`):
+        """The ``--output`` document (format :data:`rattlefit.documents.FIT`):
         parameters (SI), fit diagnostics, the spectra (log10 band PSDs of Δθ*, rad²/Hz, per
         recording: measured, fitted mean, σ) and the state sampling and diagnosis start from
         (:func:`state_document`; read back by
         :func:`rattlefit.inference.fit_document.read_fit`)."""
         est, st, sp, pr = self.estimates, self.statistics, self.spectra, self.provenance
         return {
-            "format": FIT_FORMAT,
-            "version": FIT_VERSION,
+            **FIT.header(),
             "parameters": {k: v.as_dict() for k, v in est.parameters.items()},
             "fit": {
                 "chi2": st.chi2,
@@ -312,8 +312,6 @@ def below_optimum(profiles: dict) -> dict | None:
     return {"depth": float(-low), "parameter": name}
 
 
-#: The fit document's format tag and version.
-FIT_FORMAT, FIT_VERSION = "rattlefit.fit", 2
 #: The noise model's arrays as the document stores them (:class:`NoiseModel`'s fields).
 NOISE_ARRAYS = ("sigma", "whiten", "row_scale", "chi2_recordings")
 

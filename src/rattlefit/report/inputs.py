@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from ..documents import DIAGNOSIS, FIT, POSTERIOR
 from ..errors import RattlefitError
 from ..io.recording import Recording, read_recording
 from ..io.schema import MEMORY
@@ -36,6 +37,8 @@ REQUIRED = {
         ("band_centers_hz",),
     ),
 }
+#: The format each kind of document must carry.
+FORMATS = {"fit": FIT, "posterior": POSTERIOR, "diagnosis": DIAGNOSIS}
 #: Fields of each entry of a fit's ``parameters``.
 PARAMETER_FIELDS = ("unit", "lower", "upper", "identified", "bound")
 
@@ -60,6 +63,7 @@ def check(doc, kind: str, source: str | None = None) -> dict:
                     f"{where}: {field}: missing; not the output of rattlefit {writer} -o"
                 )
             node = node[key]
+    FORMATS[kind].check(doc, where)
     renamed(doc)
     if kind == "fit":
         for name, p in doc["parameters"].items():
