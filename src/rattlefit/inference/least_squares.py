@@ -25,8 +25,8 @@ from ..problem.problem import Problem
 from .noise import band_sigma, ensemble_features
 from .starts import prior_centre
 
-#: Levenberg–Marquardt moves (accepted steps) per start and recording when
-#: ``FitOptions.max_iterations`` is None: each recording adds its own rugged cost.
+#: Levenberg–Marquardt steps per start and recording when ``FitOptions.max_iterations`` is
+#: None: each recording adds its own rugged cost.
 LM_STEPS = 8
 #: Consecutive rejected trial steps after which a run stops (:class:`StallingLevenbergMarquardt`):
 #: the trust region has shrunk by 4⁻⁴ without a lower cost, so the point is a minimum at the
@@ -68,11 +68,13 @@ def levenberg_marquardt(jacobian_at: Callable, solver, z0, max_steps: int):
     :func:`linearised_residual`. The iteration is optimistix's own: each step linearises the
     residual at ``state.y_eval`` and accepts or rejects that point; the loop, like
     ``optimistix.least_squares``'s, ends once ``solver.terminate`` says so or the iterate is not
-    finite, and after ``max_steps`` moves (:func:`moves`: accepted steps). Rejected trials,
-    which shrink the trust region, do not count: a run that cannot move ends by stalling
-    (:data:`LM_REJECTIONS` in a row), so it makes at most that many trials a move, and a run
-    that ends at its budget has moved. Keeping the simulation outside the solver's compiled step
-    means one compiled simulator (and one set of realisations) for every stage of a fit.
+    finite, and after ``max_steps`` steps, counted as optimistix counts them (the start's own
+    evaluation is the first) except for the trials rejected before the first move: while the
+    trust region shrinks from its first guess the run has not moved, and those trials are
+    free. A run that cannot move at all ends by stalling (:data:`LM_REJECTIONS` in a row), and
+    one given two steps or more never ends at its budget where it started. Keeping the
+    simulation outside the solver's compiled step means one compiled simulator (and one set of
+    realisations) for every stage of a fit.
 
     Returns ``(z, steps, result, state)``: the last accepted point, the steps taken, an
     ``optimistix.RESULTS`` and the solver's final state.
@@ -88,14 +90,14 @@ def levenberg_marquardt(jacobian_at: Callable, solver, z0, max_steps: int):
         (type(solver), n_out, z.shape[0]), eqx.filter(state, eqx.is_array, inverse=True)
     )
     state = eqx.combine(eqx.filter(state, eqx.is_array), static)
-    steps = 0
+    steps = free = 0
     while True:
         done, result = solver.terminate(linearised_residual, z, args, {}, state, frozenset())
         if not np.all(np.isfinite(np.asarray(z))):
             result = optx.RESULTS.nonfinite
         if bool(done) or result != optx.RESULTS.successful:
             break
-        if moves(state) == max_steps:
+        if steps - free == max_steps:
             result = optx.RESULTS.nonlinear_max_steps_reached
             break
         if steps:
@@ -103,6 +105,7 @@ def levenberg_marquardt(jacobian_at: Callable, solver, z0, max_steps: int):
             args = (jnp.asarray(r), jnp.asarray(jac), jnp.asarray(state.y_eval))
         z, state, _ = lm_step(solver, z, state, args)
         steps += 1
+        free += steps > 1 and moves(state) == 0  # a trial rejected before the first move
     return np.asarray(z), steps, result, state
 
 
@@ -118,8 +121,8 @@ _LM_STATIC: dict = {}
 
 
 def lm_steps(options: FitOptions, n_recordings: int) -> int:
-    """Levenberg–Marquardt moves (accepted steps) per start: ``options.max_iterations``, or
-    :data:`LM_STEPS` per recording when it is None."""
+    """Levenberg–Marquardt steps per start (:func:`levenberg_marquardt`'s budget):
+    ``options.max_iterations``, or :data:`LM_STEPS` per recording when it is None."""
     return options.max_iterations or LM_STEPS * n_recordings
 
 

@@ -186,7 +186,7 @@ def search_sentence(search: dict) -> str:
     outcome = SearchOutcome(search["outcome"])
     runs, stalled = int(search.get("runs", 1)), int(search.get("stalled_runs", 0))
     if outcome is SearchOutcome.STEP_LIMIT:
-        text = "stopped at its step limit (the estimate is its last iterate)"
+        text = "stopped at its step limit"
     elif outcome is SearchOutcome.STALLED:
         text = (
             f"converged ({stalled} of {runs} runs stalled at the cost's noise: "
