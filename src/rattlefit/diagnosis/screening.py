@@ -15,7 +15,6 @@ import numpy as np
 from ..physics.effects import effect_class
 from ..problem.parameters import Z_END
 from ..problem.problem import Problem
-from ..quantities import DRAG_TORQUE
 from .trial import Trial, costs, validated
 
 #: Where each effect field is screened before the fit: decades below the top of its range
@@ -95,9 +94,12 @@ def film_indices(problem) -> list[int]:
 
 
 def free_indices(problem) -> list[int]:
-    """Where the film half-length(s) and the drag torque sit in the problem's coordinates."""
-    names = [sp.name for sp in problem.specs]
-    return [*film_indices(problem), names.index(DRAG_TORQUE)]
+    """Where the physical parameters, the film half-length(s) and the drag torque, sit in the
+    problem's coordinates (the films first)."""
+    space = problem.space
+    physical = [space.index(n) for n in space.of_role("physical")]
+    films = film_indices(problem)
+    return [*films, *(i for i in physical if i not in films)]
 
 
 def free_alternatives(z: np.ndarray, problem) -> np.ndarray:

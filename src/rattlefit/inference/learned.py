@@ -27,7 +27,7 @@ from ..likelihood.learn import best_points
 from ..likelihood.store import Learned, read_learned, test_point_key
 from ..problem.options import FitOptions
 from ..problem.problem import Problem, problem_from
-from ..quantities import DRAG_TORQUE, FILM, MIN_FILM, VISCOSITY_SCALE, base_name
+from ..quantities import MIN_FILM, VISCOSITY_SCALE
 from ..reproducibility import platform_info
 from ..util import stamped
 from .group import flanks, group_films, group_spec
@@ -66,7 +66,7 @@ def checked_points(problem: Problem, fit: LearnedFit) -> dict[str, np.ndarray]:
     points = {"optimum": fit.optimum.z}
     for i, prof in fit.profiles.items():
         name = problem.specs[i].name
-        if name != DRAG_TORQUE and base_name(name) != FILM:
+        if name not in problem.space.of_role("physical"):
             continue
         for end, zi in (("lower", prof.lower), ("upper", prof.upper)):
             k = int(np.argmin(np.abs(prof.z - zi)))

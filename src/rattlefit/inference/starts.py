@@ -48,7 +48,7 @@ def starting_points(
     spread = [
         (i, START_RANGES[s.name == DRAG_TORQUE])
         for i, s in enumerate(specs)
-        if s.name == DRAG_TORQUE or s.name in problem.films
+        if s.name in problem.space.of_role("physical")
     ]
     n = n_starts or START_POINTS * 2 ** (len(spread) - 2)
     starts = sobol_points(specs, spread, n, rng)
