@@ -63,6 +63,10 @@ def test_the_group_coordinate_gives_every_realisation_the_films_parameters(bound
     # point in a, to rounding
     problem, z = boundary_problem
     grouped, i = group_problem(problem, "film_half_length")
+    # the group takes the film's place and declares its role: the physical parameters left
+    # are the drag torque alone
+    assert grouped.specs[i].role == "group"
+    assert grouped.space.of_role("physical") == ("drag_torque",)
     z_g, _ = to_group(problem, grouped, i, z, np.eye(len(z)))
     mu = 1.3 * float(problem.viscosities[0])
     radius, width = (

@@ -191,3 +191,14 @@ def test_a_parameter_added_to_the_space_alone_reaches_the_model_and_the_document
         ParameterSpec("x", "1", 0.5, 2.0, scales="drag")
     with pytest.raises(RattlefitError, match="drag_factor named twice"):
         bigger.extended(toy)
+
+
+def test_an_effects_fitted_fields_are_specs_of_the_effect_role():
+    """A diagnosis candidate's fields are neither physical parameters (the starts, the free
+    parameters of its screening) nor nuisances (the priors' block)."""
+    from rattlefit.diagnosis.trial import effect_specs
+    from rattlefit.physics.effects import EFFECTS
+
+    for name in EFFECTS:
+        specs = effect_specs(name)
+        assert specs and {s.role for s in specs} == {"effect"}, name

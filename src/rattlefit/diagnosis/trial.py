@@ -310,7 +310,7 @@ def effect_specs(name: str) -> tuple[ParameterSpec, ...]:
     :class:`~rattlefit.problem.parameters.ParameterSpec` objects named ``"<effect>.<field>"`` (no
     prior: log-uniform over the range)."""
     return tuple(
-        ParameterSpec(f"{name}.{field}", unit, lo, hi, fd_log_step=0.3)
+        ParameterSpec(f"{name}.{field}", unit, lo, hi, fd_log_step=0.3, role="effect")
         for field, (unit, lo, hi) in effect_class(name).ranges.items()
     )
 
