@@ -31,7 +31,6 @@ from rattlefit.inference.least_squares import (
     StallingLevenbergMarquardt,
     levenberg_marquardt,
     lm_steps,
-    moves,
 )
 from rattlefit.inference.noise import noise_model
 from rattlefit.inference.profile import SCREEN_FACTOR, ProfileCosts
@@ -764,14 +763,14 @@ def test_levenberg_marquardt_stepped_from_python_takes_optimistix_own_steps():
     runs = {}
     for residual, max_steps in ((rosenbrock, 100), (rosenbrock, 5), (spiky, 12)):
         solver = StallingLevenbergMarquardt(rtol=1e-8, atol=1e-8)
+        ref = optx.least_squares(residual, solver, y0, max_steps=max_steps, throw=False)
 
         def jacobian_at(z, residual=residual):
             z = jnp.asarray(z)
             return np.asarray(residual(z)), np.asarray(jax.jacfwd(residual)(z))
 
         z, steps, result, state = levenberg_marquardt(jacobian_at, solver, y0, max_steps)
-        ref = optx.least_squares(residual, solver, y0, max_steps=max_steps, throw=False)
-        assert steps == int(ref.stats["num_steps"])  # no trial was rejected before a move
+        assert steps == int(ref.stats["num_steps"])
         assert result == ref.result
         assert bool(StallingLevenbergMarquardt.stalled(state)) == bool(
             StallingLevenbergMarquardt.stalled(ref.state)
@@ -783,41 +782,6 @@ def test_levenberg_marquardt_stepped_from_python_takes_optimistix_own_steps():
     z, result = runs["rosenbrock", 100]
     np.testing.assert_allclose(z, [1.0, 1.0], atol=1e-6)
     assert result == optx.RESULTS.successful
-
-
-def test_the_trials_rejected_before_a_run_first_moves_do_not_spend_its_budget():
-    # r(y) = y − (1, 2), raised by a wall 0.3 from the start in y₀ (a ridge of a rough cost
-    # beside its start): the first trial steps reach past the wall and are rejected, the trust
-    # region shrinks, and shorter steps are accepted. Counting every trial, a budget of three
-    # steps (the start's evaluation and two trials) returned the start; with the rejections
-    # before the first move free, every budget of two or more moves, the run stops at the wall
-    # by stalling, and it never accepts a point of higher cost
-    y0 = np.array([3.0, 0.0])
-
-    def cost_of(z):
-        return float(np.sum(jacobian_at(z)[0] ** 2))
-
-    def jacobian_at(z):
-        z = np.asarray(z, dtype=float)
-        wall = 10.0 * max(0.0, abs(z[0] - y0[0]) - 0.3)
-        return np.array([z[0] - 1.0 + wall, z[1] - 2.0]), np.eye(2)
-
-    solver = StallingLevenbergMarquardt(rtol=1e-2, atol=1e-2)
-    ends = []
-    for budget in (2, 3, 4):
-        z, steps, result, state = levenberg_marquardt(jacobian_at, solver, y0, budget)
-        assert moves(state) >= 1 and steps > budget  # rejected trials came first, free
-        assert result == optx.RESULTS.nonlinear_max_steps_reached
-        assert cost_of(z) < cost_of(y0) and abs(z[0] - y0[0]) <= 0.3
-        ends.append(cost_of(z))
-    assert ends == sorted(ends, reverse=True)  # a larger budget ends no higher
-    z, steps, result, state = levenberg_marquardt(jacobian_at, solver, y0, 40)
-    assert result == optx.RESULTS.successful and StallingLevenbergMarquardt.stalled(state)
-    assert cost_of(z) <= ends[-1] and abs(z[0] - y0[0]) <= 0.3 + 1e-12
-    # where the first trial is accepted nothing is free: the budget is optimistix's own count
-    smooth = lambda z: (np.asarray(z, dtype=float) - 1.0, np.eye(2))  # noqa: E731
-    *_, state = levenberg_marquardt(smooth, StallingLevenbergMarquardt(1e-12, 1e-12), y0, 3)
-    assert int(state.num_steps) == 3 and moves(state) == 2
 
 
 def test_debiased_information_removes_the_jacobian_noise():

@@ -87,7 +87,7 @@ def campaign() -> None:
 @click.option(
     "--iterations",
     type=click.IntRange(min=1),
-    help="Levenberg–Marquardt steps of each refined start  [default: as identify's]",
+    help="Levenberg–Marquardt iterations of each refined start  [default: as identify's]",
 )
 @drive_option(
     "the learned likelihood is shared within a test point only with 'commanded': a measured "

@@ -67,14 +67,9 @@ def levenberg_marquardt(jacobian_at: Callable, solver, z0, max_steps: int):
     simulated by the fit's one compiled program), and the step sees them as
     :func:`linearised_residual`. The iteration is optimistix's own: each step linearises the
     residual at ``state.y_eval`` and accepts or rejects that point; the loop, like
-    ``optimistix.least_squares``'s, ends once ``solver.terminate`` says so or the iterate is not
-    finite, and after ``max_steps`` steps, counted as optimistix counts them (the start's own
-    evaluation is the first) except for the trials rejected before the first move: while the
-    trust region shrinks from its first guess the run has not moved, and those trials are
-    free. A run that cannot move at all ends by stalling (:data:`LM_REJECTIONS` in a row), and
-    one given two steps or more never ends at its budget where it started. Keeping the
-    simulation outside the solver's compiled step means one compiled simulator (and one set of
-    realisations) for every stage of a fit.
+    ``optimistix.least_squares``'s, ends once ``solver.terminate`` says so, the iterate is not
+    finite, or after ``max_steps``. Keeping the simulation outside the solver's compiled step
+    means one compiled simulator (and one set of realisations) for every stage of a fit.
 
     Returns ``(z, steps, result, state)``: the last accepted point, the steps taken, an
     ``optimistix.RESULTS`` and the solver's final state.
@@ -90,14 +85,14 @@ def levenberg_marquardt(jacobian_at: Callable, solver, z0, max_steps: int):
         (type(solver), n_out, z.shape[0]), eqx.filter(state, eqx.is_array, inverse=True)
     )
     state = eqx.combine(eqx.filter(state, eqx.is_array), static)
-    steps = free = 0
+    steps = 0
     while True:
         done, result = solver.terminate(linearised_residual, z, args, {}, state, frozenset())
         if not np.all(np.isfinite(np.asarray(z))):
             result = optx.RESULTS.nonfinite
         if bool(done) or result != optx.RESULTS.successful:
             break
-        if steps - free == max_steps:
+        if steps == max_steps:
             result = optx.RESULTS.nonlinear_max_steps_reached
             break
         if steps:
@@ -105,14 +100,7 @@ def levenberg_marquardt(jacobian_at: Callable, solver, z0, max_steps: int):
             args = (jnp.asarray(r), jnp.asarray(jac), jnp.asarray(state.y_eval))
         z, state, _ = lm_step(solver, z, state, args)
         steps += 1
-        free += steps > 1 and moves(state) == 0  # a trial rejected before the first move
     return np.asarray(z), steps, result, state
-
-
-def moves(state) -> int:
-    """The accepted steps of a Gauss–Newton ``state`` that moved the iterate (optimistix counts
-    the start's own evaluation as its first accepted step)."""
-    return max(int(state.num_accepted_steps) - 1, 0)
 
 
 #: The static part of :func:`levenberg_marquardt`'s initial solver state, by (solver type,
@@ -121,8 +109,8 @@ _LM_STATIC: dict = {}
 
 
 def lm_steps(options: FitOptions, n_recordings: int) -> int:
-    """Levenberg–Marquardt steps per start (:func:`levenberg_marquardt`'s budget):
-    ``options.max_iterations``, or :data:`LM_STEPS` per recording when it is None."""
+    """Levenberg–Marquardt steps per start: ``options.max_iterations``, or :data:`LM_STEPS` per
+    recording when it is None."""
     return options.max_iterations or LM_STEPS * n_recordings
 
 

@@ -153,9 +153,7 @@ class FitOptions:
     start_realisations : realisations per start in the screening; the best starts are then
         re-evaluated with all of them. Default 2.
     n_refine : how many of the best starts Levenberg–Marquardt refines. Default 3.
-    max_iterations : Levenberg–Marquardt steps per start, the start's evaluation included;
-        the trials rejected before the run first moves do not count (a run stops after four
-        rejected in a row: it has stalled). None:
+    max_iterations : Levenberg–Marquardt steps per start; None:
         :data:`~rattlefit.inference.least_squares.LM_STEPS` per recording.
 
     **The profile intervals** (:mod:`rattlefit.inference.profile`).
