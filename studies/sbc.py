@@ -30,13 +30,13 @@ from common import tree_state, write_result
 from scipy import stats
 
 import rattlefit as rf
-from rattlefit.inference.posterior import LearnedLogPosterior, run_chain
+from rattlefit.inference.posterior import LogPosterior, run_chain
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.likelihood import LearningOptions, learn_likelihood
 from rattlefit.likelihood.design import EDGE, simulate_design, unit_of_z, z_of_unit
 from rattlefit.likelihood.estimate import fit_learned
 from rattlefit.likelihood.learn import best_points
-from rattlefit.likelihood.store import read_learned, test_point_key, write_learned
+from rattlefit.likelihood.store import Learned, read_learned, test_point_key, write_learned
 from rattlefit.physics.model import squeeze_momentum
 from rattlefit.physics.oil import dynamic_viscosity
 from rattlefit.problem.options import FitOptions
@@ -115,7 +115,7 @@ def one_case(problem, like, z_true, seed: np.random.SeedSequence, steps: int) ->
     data = simulate_design(problem, unit_of_z(z_true)[None], 0, s_sim)
     like_k = like.replace_data(data)
     fit = fit_learned(like_k, best_points(like_k, DESIGN_U, 8), [])
-    target = LearnedLogPosterior(problem.specs, like_k)
+    target = LogPosterior(problem.specs, Learned(like_k))
     chain_seed = int(np.random.default_rng(s_chain).integers(2**31))
     sampler = run_chain(
         target, fit.optimum.z, fit.covariance_z, n_walkers=32, n_steps=steps, seed=chain_seed

@@ -9,12 +9,12 @@ import pytest
 import rattlefit as rf
 from rattlefit.inference.design import (
     add_information,
-    fisher_information,
     interval_factors,
     planned_recording,
     suggest,
 )
 from rattlefit.io.recording import OperatingPoint
+from rattlefit.likelihood.information import fisher_information
 from rattlefit.simulation.synthetic import synthesize
 
 N, F = 24, 3

@@ -32,11 +32,11 @@ from rattlefit.inference.least_squares import (
     levenberg_marquardt,
     lm_steps,
 )
-from rattlefit.inference.noise import noise_model
 from rattlefit.inference.profile import SCREEN_FACTOR, ProfileCosts
 from rattlefit.inference.result import IDENTIFIED_RATIO, estimate
 from rattlefit.inference.starts import START_POINTS, START_RANGES, starting_points
 from rattlefit.io.recording import OperatingPoint
+from rattlefit.likelihood.synthetic import noise_model
 from rattlefit.physics.oil import dynamic_viscosity
 from rattlefit.problem import forward
 from rattlefit.problem.parameters import ParameterSpec, parameter_prior

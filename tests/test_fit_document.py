@@ -43,9 +43,10 @@ def test_a_saved_fit_holds_the_state_to_the_last_bit(fitted):
     st, bk = result.state, back.state
     np.testing.assert_array_equal(bk.z, st.z)
     np.testing.assert_array_equal(bk.covariance_z, st.covariance_z)
+    noise_back, noise = bk.likelihood.noise, st.likelihood.noise
     for field in ("sigma", "whiten", "row_scale", "chi2_recordings"):
-        np.testing.assert_array_equal(getattr(bk.noise, field), getattr(st.noise, field))
-    assert bk.noise.sigma_dof == st.noise.sigma_dof and bk.options == st.options
+        np.testing.assert_array_equal(getattr(noise_back, field), getattr(noise, field))
+    assert noise_back.sigma_dof == noise.sigma_dof and bk.options == st.options
     assert back.estimates.parameters == result.estimates.parameters
     assert back.estimates.map_params == result.estimates.map_params
     # the problem rebuilt from the recordings and the options is the fit's

@@ -6,12 +6,15 @@ known in closed form; the synthetic-recording check of the whole posterior is ma
 (run it with --run-slow).
 """
 
+import dataclasses
 import json
 import math
 import subprocess
 import sys
 import warnings
+from collections.abc import Callable
 from pathlib import Path
+from typing import ClassVar
 
 import emcee
 import h5py
@@ -23,7 +26,6 @@ import rattlefit as rf
 from rattlefit import FitOptions, identify, sample, synthesize
 from rattlefit.errors import RattlefitError
 from rattlefit.features.spectra import BandSpec, spectral_features
-from rattlefit.inference.noise import NoiseModel
 from rattlefit.inference.posterior import (
     ChainContext,
     LogPosterior,
@@ -33,6 +35,9 @@ from rattlefit.inference.posterior import (
     write_context,
 )
 from rattlefit.io.recording import OperatingPoint, write_recording
+from rattlefit.likelihood.noise import NoiseModel
+from rattlefit.likelihood.protocol import Likelihood, load_likelihood, save_likelihood
+from rattlefit.likelihood.synthetic import SyntheticLikelihood
 from rattlefit.problem.forward import evaluate
 from rattlefit.problem.parameters import ParameterSpec
 from rattlefit.problem.problem import build_problem
@@ -93,6 +98,33 @@ def _posterior(chain, names, units, *, discard, **extra):
     return Posterior(names=names, units=units, chain=chain, discard=discard, **fields)
 
 
+@dataclasses.dataclass(frozen=True)
+class MeanLikelihood:
+    """A Gaussian likelihood of ``data`` about ``mean_features(zs)`` (K, R, F), weighted by
+    ``noise``: a third kind, made only through the likelihood contract."""
+
+    kind: ClassVar[str] = "closed_form"
+    noise: NoiseModel
+    data: np.ndarray
+    mean_features: Callable
+
+    def bind(self, problem):
+        return self
+
+    def log_density(self, zs):
+        return self.noise.log_density(self.data, self.mean_features(zs))
+
+    def information(self, z, names, *, rng):
+        raise NotImplementedError
+
+    def save(self, g):
+        raise NotImplementedError
+
+
+def _target(specs, data, noise, mean_features):
+    return LogPosterior(specs, MeanLikelihood(noise, np.asarray(data, float), mean_features))
+
+
 def _identity_noise(n_band, sigma=1.0):
     return NoiseModel(
         np.full((1, n_band), sigma), np.eye(n_band), np.ones(n_band), np.zeros(1), 100
@@ -108,7 +140,7 @@ def test_without_data_the_chain_draws_the_priors():
         ParameterSpec("viscosity_scale", "1", 0.2, 5.0, center=1.0, log_sd=0.5),
     )
     data = np.zeros((1, 3))
-    target = LogPosterior(specs, data, _identity_noise(3), lambda zs: np.zeros((len(zs), 1, 3)))
+    target = _target(specs, data, _identity_noise(3), lambda zs: np.zeros((len(zs), 1, 3)))
     sampler = run_chain(
         target,
         np.zeros(2),
@@ -149,7 +181,7 @@ def test_linear_gaussian_posterior_matches_the_closed_form():
     )
     truth = np.array([0.3, -0.2, 0.1])
     data = (a @ truth + sigma * rng.normal(size=n_band))[None]
-    target = LogPosterior(specs, data, noise, lambda zs: (_log_values(specs, zs) @ a.T)[:, None, :])
+    target = _target(specs, data, noise, lambda zs: (_log_values(specs, zs) @ a.T)[:, None, :])
     c_inv = whiten.T @ np.diag(np.full(n_band, scale**2)) @ whiten / sigma**2
     precision = a.T @ c_inv @ a + np.eye(3) / 0.4**2
     cov = np.linalg.inv(precision)
@@ -167,7 +199,7 @@ def test_linear_gaussian_posterior_matches_the_closed_form():
 
 def test_a_resumed_chain_equals_an_uninterrupted_one(tmp_path):
     specs = (ParameterSpec("film_half_length", "m", 1e-6, 5e-3), ParameterSpec("b", "1", 0.1, 10.0))
-    target = LogPosterior(
+    target = _target(
         specs,
         np.zeros((1, 2)),
         _identity_noise(2, 0.5),
@@ -214,13 +246,42 @@ def test_a_chain_file_of_other_recordings_is_refused(tmp_path, small_recording):
         np.zeros(6),
         np.eye(6),
         np.zeros((1, n_band)),  # not this recording's features
-        _identity_noise(n_band),
+        SyntheticLikelihood(_identity_noise(n_band)),
         ["elsewhere.h5"],
         0,
     )
     write_context(path, ctx)
     with pytest.raises(RattlefitError, match=r"chain\.h5: /rattlefit/data: .*elsewhere\.h5"):
         sample([small_recording], backend=path)
+
+
+def test_the_synthetic_kind_scores_by_its_noise_model_and_is_stored_with_its_kind(
+    tmp_path, small_recording
+):
+    options = FitOptions(n_realisations=3, seed=BUILD_SEED)
+    problem, _ = build_problem([small_recording], options, np.random.default_rng(BUILD_SEED))
+    data = np.asarray(problem.data)
+    n = data.size
+    corr = 0.4 ** np.abs(np.subtract.outer(np.arange(n), np.arange(n)))
+    whiten = np.linalg.inv(np.linalg.cholesky(corr))
+    noise = NoiseModel(np.full(data.shape, 0.2), whiten, np.full(n, 0.8), np.zeros(1), 100)
+    like = SyntheticLikelihood.of_fit(noise, problem, options)
+    assert isinstance(like, Likelihood) and like.kind == "synthetic"
+    zs = np.zeros((2, len(problem.specs)))
+    zs[1, 0] = 0.5
+    mean = np.asarray(problem.mean_of(evaluate(problem, zs)))  # (2, 1, F)
+    r = (data - mean).reshape(2, -1) / 0.2
+    closed_form = -0.5 * np.sum((0.8 * (r @ whiten.T)) ** 2, axis=1)
+    np.testing.assert_allclose(like.log_density(zs), closed_form, rtol=1e-12)
+    with h5py.File(tmp_path / "l.h5", "w") as f:
+        save_likelihood(f.create_group("likelihood"), like)
+    with h5py.File(tmp_path / "l.h5", "r") as f:
+        back = load_likelihood(f["likelihood"], problem, "l.h5: /likelihood")
+        np.testing.assert_array_equal(back.log_density(zs), like.log_density(zs))
+    with h5py.File(tmp_path / "l.h5", "a") as f:
+        f["likelihood"].attrs["kind"] = "tabulated"
+        with pytest.raises(RattlefitError, match=r"l\.h5: /likelihood@kind: unknown .*tabulated"):
+            load_likelihood(f["likelihood"], problem, "l.h5: /likelihood")
 
 
 def test_a_foreign_hdf5_file_is_refused_and_kept(tmp_path, small_recording):
@@ -317,7 +378,13 @@ def short_chain(tmp_path_factory, small_recording):
     )
     chain_file = directory / "chain.h5"
     ctx = ChainContext(
-        options, z, 0.01 * np.eye(len(z)), data, noise, [small_recording.path], SHORT_CHAIN_SEED
+        options,
+        z,
+        0.01 * np.eye(len(z)),
+        data,
+        SyntheticLikelihood(noise),
+        [small_recording.path],
+        SHORT_CHAIN_SEED,
     )
     write_context(chain_file, ctx)
     chain_options = SampleOptions(n_walkers=12, n_steps=6, discard=2)

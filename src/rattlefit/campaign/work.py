@@ -161,15 +161,13 @@ def inspect_unit(unit: Unit, fit: FitOptions, learned: bool, env: Environment) -
 def learned_bytes(result) -> bytes | None:
     """The learned likelihood ``result`` fitted on, as the bytes of its stored file
     (:func:`rattlefit.likelihood.store.write_learned`); None for the synthetic likelihood."""
-    if result.state.learned is None:
-        return None
-    from ..likelihood.store import write_learned
+    from ..likelihood.store import Learned, write_learned
 
-    learned = result.state.learned
-    fields = {f.name: getattr(learned, f.name) for f in dataclasses.fields(learned)}
+    if not isinstance(result.state.likelihood, Learned):
+        return None
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "learned.likelihood.h5"
-        write_learned(path, fields.pop("likelihood"), fields.pop("design"), **fields)
+        write_learned(path, result.state.likelihood)
         return path.read_bytes()
 
 

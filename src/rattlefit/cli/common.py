@@ -199,20 +199,11 @@ def likelihood_keywords(method: str, reuse: Path | None) -> dict:
 
 def write_learned_beside(result, output: Path | None, doc: dict) -> None:
     """Store a learned likelihood beside the JSON (X.json → X.likelihood.h5)."""
-    if output is None or result.state.learned is None:
-        return
-    from ..likelihood.store import write_learned
+    from ..likelihood.store import Learned, write_learned
 
-    learned = result.state.learned
-    path = output.with_suffix(".likelihood.h5")
-    write_learned(
-        path,
-        learned.likelihood,
-        learned.design,
-        key=learned.key,
-        seed=learned.seed,
-        options=learned.options,
-    )
+    if output is None or not isinstance(result.state.likelihood, Learned):
+        return
+    path = write_learned(output.with_suffix(".likelihood.h5"), result.state.likelihood)
     doc["fit"]["likelihood"]["file"] = str(path)
     click.echo(f"wrote {path} (the learned likelihood; --reuse-likelihood reuses it)", err=True)
 
@@ -233,14 +224,16 @@ def priors_of(texts) -> dict:
 
 def saved_fit(path: Path, recordings, command: str):
     """The fit ``identify -o`` wrote to ``path``, of ``recordings`` (matched by their counts),
-    for ``command`` to start from; a fit on the learned likelihood is refused for ``sample``,
-    whose chain needs the likelihood itself (identify in the same run, or reuse it)."""
+    for ``command`` to start from; a fit on the learned likelihood whose likelihood file is
+    not beside it is refused for ``sample``, whose chain needs the likelihood itself."""
     from ..inference.fit_document import read_fit
 
     fit = read_fit(path, recordings)
-    if command == "sample" and fit.provenance.likelihood.get("method") == "learned":
+    method = fit.provenance.likelihood.get("method", "synthetic")
+    if command == "sample" and method != fit.state.likelihood.kind:
         raise RattlefitError(
-            f"{path}: fit/likelihood: a fit on the learned likelihood; sample these files with "
-            "--reuse-likelihood (its .likelihood.h5) instead of --fit"
+            f"{path}: fit/likelihood/file: a fit on the learned likelihood whose file "
+            f"({path.with_suffix('.likelihood.h5').name}) is not beside it; put it there, or "
+            "sample these files with --reuse-likelihood FILE instead of --fit"
         )
     return fit

@@ -234,12 +234,9 @@ def trial_of(
     every effect of ``options``; each with its ``static`` fields), noise model, fresh release
     states for the final comparison and validation states (the fit's covariance count), from
     two children spawned from the fit's seed."""
-    noise, base = baseline.state.noise, baseline.problem_for(recordings)
-    if noise is None:
-        raise RattlefitError(
-            "diagnose: the baseline fit carries no noise model (a fit read back from its JSON: "
-            "identify in this process)"
-        )
+    if baseline.state.likelihood is None:
+        raise RattlefitError("diagnose: the baseline fit holds no likelihood (identify first)")
+    noise, base = baseline.state.likelihood.noise, baseline.problem_for(recordings)
     names = options.effects if names is None else names
     problem, candidates = candidate_problem(base, names, static)
     fit_options = baseline.state.options

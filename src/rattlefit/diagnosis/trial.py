@@ -19,9 +19,9 @@ import numpy as np
 from scipy import stats
 
 from ..confidence import Z95_ONE_SIDED
-from ..inference.noise import NoiseModel
 from ..inference.profile import polish_profile
 from ..io.recording import Recording
+from ..likelihood.noise import NoiseModel
 from ..physics.effects import absent, effect_class
 from ..problem.forward import evaluate
 from ..problem.parameters import Z_END, ParameterSpec

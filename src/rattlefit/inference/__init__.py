@@ -10,9 +10,9 @@ What is fitted (parameters, options, the problem and its feature map) is
 - :mod:`.posterior`: the Bayesian posterior by emcee, with a resumable HDF5 chain.
 """
 
+from ..likelihood.noise import NoiseModel
 from ..problem.options import FitOptions
 from .identify import identify
-from .noise import NoiseModel
 from .posterior import Posterior, SampleOptions, sample
 from .result import (
     Estimates,

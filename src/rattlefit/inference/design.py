@@ -2,17 +2,16 @@
 
 At the fitted point, each candidate recording (the same test run longer, another centre
 distance, fluctuation, frequency or lubrication) is simulated and its Fisher information about
-the film half-lengths, the drag torque and the nuisances is estimated from realisations:
-``F = Dᵀ C⁻¹ D``, ``D`` the derivative of the mean features per unit log of each parameter
-(central differences at ``e^{±δ}``), ``C`` one recording's feature covariance (the chaotic
-spread, floored as in the fit, its correlation shrunk), less the bias that the Monte Carlo
-noise of ``D`` adds to ``DᵀC⁻¹D``. Information from independent recordings adds, so the
-prediction for "this fit plus a candidate" is the sum of the fitted recordings' information,
-the candidate's and the priors'. Each parameter's predicted 95 % interval factor is
-``exp(2 · 1.96 · sd)``, sd from the inverse. For a fit on the learned likelihood, the fitted
-recordings' information is that likelihood's own (``D`` and ``C`` its learned mean and
-covariance at the optimum), so the "now" row is the learned fit's Fisher prediction; the
-candidates, which nothing was learned for, are simulated.
+the film half-lengths, the drag torque and the nuisances is estimated from realisations
+(:func:`~rattlefit.likelihood.information.simulated_information`: ``F = Dᵀ C⁻¹ D``, ``D``
+by central differences at ``e^{±δ}``, ``C`` the chaotic spread, floored as in the fit, less
+the bias the Monte Carlo noise of ``D`` adds). The fitted recordings' information is their
+likelihood's own (:meth:`~rattlefit.likelihood.protocol.Likelihood.information`: simulated for
+the synthetic likelihood, from the learned mean and covariance for the learned one).
+Information from independent recordings adds, so the prediction for "this fit plus a
+candidate" is the sum of the fitted recordings' information, the candidate's and the priors'.
+Each parameter's predicted 95 % interval factor is ``exp(2 · 1.96 · sd)``, sd from the
+inverse.
 
 This is a local, Gaussian prediction at the fitted point: it ranks candidates and says how much
 they could narrow an interval, while the profile intervals of an actual fit are wider where
@@ -25,36 +24,33 @@ import dataclasses
 import math
 from collections.abc import Callable, Sequence
 
-import jax.numpy as jnp
 import numpy as np
 
 from ..confidence import Z95
-from ..errors import RattlefitError
-from ..features.ensemble import chaotic_part, shrunk_correlation
 from ..io.recording import Recording
+from ..likelihood.information import (
+    SIMULATED_REALISATIONS,
+    SIMULATED_STEP,
+    simulated_information,
+)
 from ..physics.geometry import GearGeometry, backlash_from_center_distance
 from ..physics.model import RattleParams
-from ..problem.forward import evaluate
 from ..problem.options import FitOptions
-from ..problem.problem import build_problem, release_states
+from ..problem.problem import build_problem
 from ..quantities import DRAG_TORQUE, FILM
 from ..simulation.synthetic import synthesize
 from .result import FitResult
 
 #: Realisations per point of the information estimate.
-DESIGN_REALISATIONS = 24
+DESIGN_REALISATIONS = SIMULATED_REALISATIONS
 #: Log step of the central differences.
-DESIGN_STEP = 0.4
-#: Log step of the central differences of the learned likelihood's mean (smooth and
-#: deterministic, so a small step has no Monte Carlo noise to beat).
-LEARNED_STEP = 0.02
+DESIGN_STEP = SIMULATED_STEP
 #: How much longer the "longer run" candidate is.
 LONGER = 10
 #: Centre-distance changes tried, mm.
 CENTER_STEPS_MM = (-0.6, -0.2, 0.4)
 #: Film half-length assumed for a lubrication the fit has no film of, m.
 TYPICAL_FILM = {"boundary": 0.085e-3, "oil_jet": 1.0e-3}
-#: The standard normal's 97.5 % quantile.
 
 
 @dataclasses.dataclass(frozen=True)
@@ -100,7 +96,6 @@ def recording_information(
     )
     problem, _ = build_problem([recording], opts, rng)
     names = parameter_names(problem)
-    index = {s.name: i for i, s in enumerate(problem.specs)}
     # the backlash at its measured value, everything else at the fitted one
     z0 = np.array(
         [
@@ -108,76 +103,10 @@ def recording_information(
             for s in problem.specs
         ]
     )
-    points, logs = [z0], []
-    for name in names:
-        spec, i = problem.specs[index[name]], index[name]
-        v = float(spec.value(z0[i]))
-        for sign in (1.0, -1.0):
-            z = z0.copy()
-            z[i] = spec.z_of(min(max(v * math.exp(sign * step), spec.lower), spec.upper))
-            points.append(z)
-        logs.append(math.log(spec.value(points[-2][i]) / spec.value(points[-1][i])))
-    y0 = release_states(problem, z0, n, rng)
-    per = evaluate(problem, np.stack(points), y0)[:, 0]  # (K, n, B)
-    mean = np.asarray(problem.mean_of(per))
-    d = np.stack([(mean[1 + 2 * j] - mean[2 + 2 * j]) / logs[j] for j in range(len(names))], 1)
-    kept = np.asarray(problem.mean_weights(per[0][None]))[0] > 0
-    dev, dof = chaotic_part(per[0][None], problem.dither_offsets(n), kept[None])
-    info = fisher_information(d, dev[0, kept], int(dof[0]), np.array(logs), options.sigma_floor)
-    return names, info
-
-
-def fisher_information(derivatives, deviations, dof: int, log_steps, floor: float) -> np.ndarray:
-    """The information (P, P) of one recording whose mean features move by ``derivatives``
-    (F, P) per unit log of each parameter, estimated by central differences over
-    ``log_steps`` (P,) from means of as many realisations as ``deviations`` (n, F) holds
-    (their chaotic deviations, with ``dof`` degrees of freedom).
-
-    The covariance is the deviations' spread (floored at ``floor``) with their shrunk
-    correlation. The Monte Carlo noise of each mean adds ``2F / (n Δ²)`` to the diagonal of
-    ``DᵀC⁻¹D`` on average, which is subtracted; the negative eigenvalues the subtraction
-    can leave are set to zero.
-    """
-    d, dev = np.asarray(derivatives), np.asarray(deviations)
-    n, f = dev.shape
-    sd = np.maximum(np.sqrt(np.sum(dev**2, axis=0) / max(dof, 1)), floor)
-    cov = shrunk_correlation(dev) * np.outer(sd, sd)
-    info = d.T @ np.linalg.solve(cov, d)
-    info -= np.diag(2.0 * f / (n * np.asarray(log_steps) ** 2))
-    value, vector = np.linalg.eigh(info)
-    return (vector * np.maximum(value, 0.0)) @ vector.T
-
-
-def learned_information(
-    fit: FitResult, problem, recordings: Sequence[Recording], step: float = LEARNED_STEP
-) -> tuple[list[str], np.ndarray]:
-    """The fitted recordings' Fisher information (P, P) per unit log of each parameter of
-    :func:`parameter_names` from ``fit``'s learned likelihood at its optimum:
-    ``Σ_r D_rᵀ C_r⁻¹ D_r``, ``D_r`` the derivative of recording r's learned mean features
-    (central differences over ``step`` in the log), ``C_r`` their learned covariance (the
-    chaotic spread and the variance floor); the films named by lubrication. Raises
-    :class:`~rattlefit.errors.RattlefitError` when ``fit`` holds no learned likelihood."""
-    if fit.state.learned is None:
-        raise RattlefitError("learned_information: the fit was not made on a learned likelihood")
-    like, z0 = fit.state.learned.likelihood, np.asarray(fit.state.z, dtype=float)
-    names = parameter_names(problem)
-    index = {s.name: i for i, s in enumerate(problem.specs)}
-    d = []
-    for name in names:
-        i = index[name]
-        dz = step / float(problem.specs[i].dlog_dz(z0[i]))
-        up, down = z0.copy(), z0.copy()
-        up[i] += dz
-        down[i] -= dz
-        mean_up, mean_down = (np.asarray(like.moments(jnp.asarray(z))[0]) for z in (up, down))
-        d.append((mean_up - mean_down) / (2 * step))
-    d = np.stack(d, axis=-1)  # (R, F, P)
-    cov = np.asarray(like.moments(jnp.asarray(z0))[1])
-    info = sum(d[k].T @ np.linalg.solve(cov[k], d[k]) for k in range(len(d)))
-    lubrication = dict(
-        zip(problem.films, (r.operating.lubrication for r in recordings), strict=True)
+    info = simulated_information(
+        problem, z0, names, n=n, step=step, floor=options.sigma_floor, rng=rng
     )
-    return [f"{FILM}[{lubrication[n]}]" if n in lubrication else n for n in names], info
+    return names, info
 
 
 def interval_factors(names: Sequence[str], info: np.ndarray) -> dict[str, float]:
@@ -268,7 +197,8 @@ def suggest(
     films = {
         r.operating.lubrication: values[f] for r, f in zip(recordings, problem.films, strict=True)
     }
-    names, now = fitted_information(fit, problem, recordings, values, films, n, rng, say)
+    say("the information of the fitted recordings …")
+    names, now = fitted_information(fit, problem, recordings, rng)
     rows = [Planned("now", interval_factors(names, now + prior_information(problem, names)))]
     params = fit.estimates.rattle_params(0)
     for label, template, changes in candidates(recordings[0]):
@@ -288,20 +218,17 @@ def suggest(
     return rows
 
 
-def fitted_information(fit: FitResult, problem, recordings, values, films, n, rng, say):
-    """The fitted recordings' information and its parameters' names: from ``fit``'s learned
-    likelihood when it has one (:func:`learned_information`), else simulated at the fitted
-    ``values`` recording by recording (:func:`film_information`)."""
-    if fit.state.learned is not None:
-        say("the information of the fitted recordings from their learned likelihood …")
-        return learned_information(fit, problem, recordings)
-    names: list[str] = []
-    now = np.zeros((0, 0))
-    for rec in recordings:
-        say(f"simulating the information of {rec.path} …")
-        more_names, more = film_information(rec, values, films, fit.state.options, n, rng)
-        names, now = add_information(names, now, more_names, more)
-    return names, now
+def fitted_information(fit: FitResult, problem, recordings, rng) -> tuple[list[str], np.ndarray]:
+    """The fitted recordings' information (P, P) at ``fit``'s optimum and its parameters'
+    names (:func:`parameter_names`, the films named by lubrication), from the fit's own
+    likelihood (:meth:`~rattlefit.likelihood.protocol.Likelihood.information`)."""
+    names = parameter_names(problem)
+    likelihood = fit.state.likelihood_for(recordings, fit.spectra.sigma)
+    info = likelihood.information(np.asarray(fit.state.z, dtype=float), names, rng=rng)
+    lubrication = dict(
+        zip(problem.films, (r.operating.lubrication for r in recordings), strict=True)
+    )
+    return [f"{FILM}[{lubrication[n]}]" if n in lubrication else n for n in names], info
 
 
 def plan_document(rows: Sequence[Planned], *, seed: int, realisations: int) -> dict:

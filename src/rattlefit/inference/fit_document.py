@@ -24,8 +24,10 @@ import numpy as np
 from ..documents import FIT
 from ..errors import RattlefitError
 from ..io.recording import Recording, counts_sha256
+from ..likelihood.noise import NoiseModel
+from ..likelihood.store import read_learned
+from ..likelihood.synthetic import SyntheticLikelihood
 from ..problem.options import FitOptions
-from .noise import NoiseModel
 from .outcome import SearchEnd
 from .result import (
     NOISE_ARRAYS,
@@ -75,9 +77,32 @@ def fitted_to(fit: FitResult, recordings: Sequence[Recording], file: str) -> Fit
                 f"({fit.provenance.recordings[k]}): its counts differ"
             )
     paths = [str(r.path) for r in recordings]
-    return dataclasses.replace(
-        fit, provenance=dataclasses.replace(fit.provenance, recordings=paths)
-    )
+    fit = dataclasses.replace(fit, provenance=dataclasses.replace(fit.provenance, recordings=paths))
+    return with_stored_likelihood(fit, recordings, file)
+
+
+def stored_likelihood_file(fit: FitResult, file: str) -> Path | None:
+    """The learned likelihood file ``identify -o`` stored beside the fit's document ``file``
+    (its ``fit.likelihood.file``, else ``X.likelihood.h5`` beside ``X.json``); None for a
+    fit on the synthetic likelihood or when the file is not there."""
+    if fit.provenance.likelihood.get("method") != "learned":
+        return None
+    named = fit.provenance.likelihood.get("file")
+    for path in (Path(named) if named else None, Path(file).with_suffix(".likelihood.h5")):
+        if path is not None and path.is_file():
+            return path
+    return None
+
+
+def with_stored_likelihood(fit: FitResult, recordings: Sequence[Recording], file: str):
+    """``fit`` holding its learned likelihood (:func:`stored_likelihood_file`), with the
+    document's noise model, when the file is there; else ``fit`` as read."""
+    path = stored_likelihood_file(fit, file)
+    if path is None:
+        return fit
+    learned = read_learned(path, fit.problem_for(recordings))
+    learned = dataclasses.replace(learned, noise=fit.state.likelihood.noise)
+    return dataclasses.replace(fit, state=dataclasses.replace(fit.state, likelihood=learned))
 
 
 def fit_of(doc, file: str = "<fit>") -> FitResult:
@@ -155,9 +180,10 @@ def fitted_state_of_document(doc: dict) -> FittedState:
         int(noise["sigma_dof"]),
         None if share is None else np.asarray(share, dtype=float),
     )
+    options = FitOptions.from_dict(doc["fit"]["options"])
     return FittedState(
-        FitOptions.from_dict(doc["fit"]["options"]),
+        options,
         np.asarray(state["z"], dtype=float),
         np.asarray(state["covariance_z"], dtype=float),
-        noise=model,
+        likelihood=SyntheticLikelihood.of_fit(model, None, options),
     )

@@ -34,6 +34,7 @@ import numpy as np
 
 from ..confidence import Z95_ONE_SIDED
 from ..io.recording import Recording
+from ..likelihood.synthetic import SyntheticLikelihood
 from ..problem.options import FitOptions
 from ..problem.problem import Problem, problem_from, release_states
 from ..reproducibility import platform_info
@@ -177,35 +178,18 @@ def assemble_result(
     )
     spectra = spectra_of(problem, lap.mean, problem.sigma)
     provenance = provenance_of(rigs, options, wall, platform)
-    state = FittedState(options, z, cov, noise=lap.noise, problem=problem)
+    likelihood = SyntheticLikelihood.of_fit(lap.noise, problem, options)
+    state = FittedState(options, z, cov, likelihood=likelihood, problem=problem)
     return FitResult(estimates, statistics, spectra, provenance, state)
 
 
-def identify(
+def identify_synthetic(
     recordings: Sequence[Recording],
-    options: FitOptions | None = None,
+    options: FitOptions,
     *,
     progress: Callable[[str], None] | None = None,
 ) -> FitResult:
-    """Identify ``a``, ``drag_torque`` and the viscosity from one or more recordings.
-
-    Several recordings of one gear pair are fitted jointly: they share ``a``,
-    ``drag_torque``, the viscosity factor, the stiffness scale and ``h_min`` (e.g. a backlash
-    sweep as in the paper's Figs. 10–12); each has its own backlash. Recordings under
-    different lubrications each get their lubrication's film half-length (``a[boundary]``,
-    ``a[oil_jet]``, …) and share the rest: under oil jet the squeeze force saturates in ``a``
-    and pins the oil's viscosity, which a boundary recording alone cannot separate from ``a``
-    and ``h_min``.
-
-    ``options`` defaults to ``FitOptions()``; with ``FitOptions(likelihood="learned")`` the
-    fit runs on a likelihood learned from simulations
-    (:func:`~rattlefit.inference.learned.identify_learned`). ``progress`` receives one-line
-    messages while the fit works. Raises :class:`~rattlefit.errors.RattlefitError` when the
-    recordings cannot be fitted jointly or an option names a parameter the fit does not have.
-    """
-    options = options or FitOptions()
-    if options.likelihood == "learned":
-        return identify_learned(recordings, options, progress=progress)
+    """:func:`identify` on the synthetic likelihood (the module docstring's stages)."""
     t_start = time.perf_counter()
     say = stamped(progress, t_start)  # progress, stamped with the time since the start
     platform = platform_info()
@@ -238,3 +222,35 @@ def identify(
     wall = time.perf_counter() - t_start
     say(f"done in {wall:.1f} s")
     return assemble_result(unc, refined, rigs, options, wall=wall, platform=platform, groups=groups)
+
+
+#: The fit of each ``FitOptions.likelihood``.
+FITS = {"synthetic": identify_synthetic, "learned": identify_learned}
+
+
+def identify(
+    recordings: Sequence[Recording],
+    options: FitOptions | None = None,
+    *,
+    progress: Callable[[str], None] | None = None,
+) -> FitResult:
+    """Identify ``a``, ``drag_torque`` and the viscosity from one or more recordings.
+
+    Several recordings of one gear pair are fitted jointly: they share ``a``,
+    ``drag_torque``, the viscosity factor, the stiffness scale and ``h_min`` (e.g. a backlash
+    sweep as in the paper's Figs. 10–12); each has its own backlash. Recordings under
+    different lubrications each get their lubrication's film half-length (``a[boundary]``,
+    ``a[oil_jet]``, …) and share the rest: under oil jet the squeeze force saturates in ``a``
+    and pins the oil's viscosity, which a boundary recording alone cannot separate from ``a``
+    and ``h_min``.
+
+    ``options`` defaults to ``FitOptions()``; ``options.likelihood`` chooses the fit of
+    :data:`FITS`: on the synthetic likelihood (:func:`identify_synthetic`), or on a likelihood
+    learned from simulations (:func:`~rattlefit.inference.learned.identify_learned`); the
+    result's state holds that :class:`~rattlefit.likelihood.protocol.Likelihood`.
+    ``progress`` receives one-line
+    messages while the fit works. Raises :class:`~rattlefit.errors.RattlefitError` when the
+    recordings cannot be fitted jointly or an option names a parameter the fit does not have.
+    """
+    options = options or FitOptions()
+    return FITS[options.likelihood](recordings, options, progress=progress)

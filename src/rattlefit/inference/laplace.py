@@ -1,7 +1,7 @@
 """The Laplace (Gauss–Newton) covariance at the optimum, and the noise model fixed there.
 
 At the optimum, more realisations than the search uses (released from fresh states) give
-the band spread and correlations (:class:`~rattlefit.inference.noise.NoiseModel`) and a
+the band spread and correlations (:class:`~rattlefit.likelihood.noise.NoiseModel`) and a
 central-difference Jacobian of the ensemble-mean features at a wider step, which averages
 over the small-scale ruggedness of a chaotic statistic. Each Jacobian column is a
 difference of two noisy means; its expected noise is removed from ``JᵀJ`` so that noise does
@@ -15,10 +15,11 @@ import dataclasses
 import equinox as eqx
 import numpy as np
 
+from ..likelihood.noise import NoiseModel
+from ..likelihood.synthetic import band_sigma, noise_model
 from ..problem.forward import evaluate, fd_jacobian, fd_points
 from ..problem.options import FitOptions
 from ..problem.problem import Problem
-from .noise import NoiseModel, band_sigma, noise_model
 
 #: Floor on the eigenvalues of the information matrix (a standard deviation of 1000 in z).
 MIN_INFORMATION = 1e-6

@@ -31,7 +31,6 @@ from ..quantities import MIN_FILM, VISCOSITY_SCALE
 from ..reproducibility import platform_info
 from ..util import stamped
 from .group import flanks, group_films, group_spec
-from .noise import NoiseModel
 from .outcome import search_end
 from .result import (
     Estimates,
@@ -153,35 +152,10 @@ def learned_result(
     )
     spectra = spectra_of(problem, mean, [np.sqrt(np.diag(c)) for c in total])
     provenance = provenance_of(rigs, options, wall, platform, likelihood=info)
-    noise = learned_noise(
-        total, options.n_realisations, statistics.chi2_recordings, int(learned.design.u.shape[0])
-    )
-    problem = dataclasses.replace(problem, sigma=jnp.asarray(noise.sigma))
-    state = FittedState(options, z, cov, noise=noise, problem=problem, learned=learned)
+    learned = learned.at_optimum(z, options.n_realisations)
+    problem = dataclasses.replace(problem, sigma=jnp.asarray(learned.noise.sigma))
+    state = FittedState(options, z, cov, likelihood=learned, problem=problem)
     return FitResult(estimates, statistics, spectra, provenance, state)
-
-
-def learned_noise(total, n_realisations: int, chi2_recordings, simulations: int) -> NoiseModel:
-    """The noise model of a fit on the learned likelihood, from the learned density's feature
-    covariance ``total`` (R, F, F) at the optimum: each feature's spread and the features'
-    correlation (the whitening block-diagonal, since recordings are independent), each spread
-    widened by the Monte Carlo error of a mean of ``n_realisations`` realisations, as the
-    synthetic likelihood's is. No Birge inflation (``row_scale`` one): the learned density's
-    spread is checked against fresh simulations instead (:mod:`rattlefit.likelihood.check`).
-    ``chi2_recordings`` (R,) are each recording's χ² there, ``simulations`` what it was
-    learned from per recording (its ``sigma_dof``)."""
-    cov = np.asarray(total)
-    n_rec, n_feat = cov.shape[:2]
-    sigma = np.sqrt(np.diagonal(cov, axis1=1, axis2=2) * (1.0 + 1.0 / n_realisations))
-    whiten = np.zeros((n_rec * n_feat, n_rec * n_feat))
-    for k in range(n_rec):
-        sd = np.sqrt(np.diag(cov[k]))
-        corr = cov[k] / np.outer(sd, sd) + 1e-9 * np.eye(n_feat)
-        sl = slice(k * n_feat, (k + 1) * n_feat)
-        whiten[sl, sl] = np.linalg.inv(np.linalg.cholesky(corr))
-    return NoiseModel(
-        sigma, whiten, np.ones(n_rec * n_feat), np.asarray(chi2_recordings, float), simulations
-    )
 
 
 def band_floor(problem: Problem, options: FitOptions) -> np.ndarray:

@@ -19,10 +19,10 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
+from ..likelihood.synthetic import band_sigma, ensemble_features
 from ..problem import forward
 from ..problem.options import FitOptions
 from ..problem.problem import Problem
-from .noise import band_sigma, ensemble_features
 from .starts import prior_centre
 
 #: Levenberg–Marquardt steps per start and recording when ``FitOptions.max_iterations`` is

@@ -10,7 +10,7 @@ The target is the posterior density in the fit's unconstrained coordinates ``z``
   deterministic function of ``z``. This is a Gaussian synthetic likelihood (Wood 2010; Price
   et al. 2018) whose band spread ``σ`` (which holds the Monte Carlo variance of an
   M-realisation mean), band correlations ``W`` and per-recording χ² inflation are those of the
-  fit at its optimum (:class:`~rattlefit.inference.noise.NoiseModel`). Re-estimating them at
+  fit at its optimum (:class:`~rattlefit.likelihood.noise.NoiseModel`). Re-estimating them at
   every point would make the target itself noisy, and a noisy target makes ensemble MCMC
   sticky.
 * priors ``π``: log-uniform over the range for the free parameters (``a``, ``drag_torque``);
@@ -18,13 +18,15 @@ The target is the posterior density in the fit's unconstrained coordinates ``z``
   (viscosity factor, stiffness scale, ``h_min``, each backlash). The chain moves in ``z``, and
   the Jacobian term makes these the priors of the values themselves.
 
-The user-function contract is emcee's with ``vectorize=True``: :class:`LogPosterior` maps a
+The likelihood is the fit's own (:class:`~rattlefit.likelihood.protocol.Likelihood`): the
+synthetic one above, or a learned one, whose density needs no simulation. The user-function
+contract is emcee's with ``vectorize=True``: :class:`LogPosterior` maps a
 batch of points ``(K, P)`` to ``(K,)`` log densities (``-inf`` outside the support, never NaN),
 and the half-ensemble that each move updates is simulated in one batch.
 
 The chain is written step by step to an HDF5 file (emcee's ``HDFBackend``, group ``mcmc``),
 together with everything needed to continue it (group ``rattlefit``: the fit's options, seed,
-optimum, covariance, noise model and the measured features). Running :func:`sample` again on
+optimum, covariance, likelihood and the measured features). Running :func:`sample` again on
 the same file continues the chain to ``n_steps`` without refitting; the random state is
 restored, so an interrupted and resumed chain equals an uninterrupted one.
 """
@@ -32,7 +34,6 @@ restored, so an interrupted and resumed chain equals an uninterrupted one.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import json
 import math
 import time
@@ -41,14 +42,12 @@ from pathlib import Path
 
 import emcee
 import h5py
-import jax.numpy as jnp
 import numpy as np
 
 from ..documents import POSTERIOR
 from ..errors import RattlefitError
 from ..io.recording import Recording
-from ..likelihood.model import LearnedLikelihood, batch_chi2_terms
-from ..likelihood.store import GROUP, Learned, read_group, write_group
+from ..likelihood.protocol import Likelihood, load_likelihood, save_likelihood
 from ..problem.forward import evaluate
 from ..problem.options import FitOptions
 from ..problem.parameters import Z_END, ParameterSpec
@@ -57,13 +56,14 @@ from ..quantities import VISCOSITY, VISCOSITY_SCALE
 from ..reproducibility import platform_info
 from . import arviz_io
 from .identify import identify
-from .noise import NoiseModel
 from .result import FitResult
 
 #: Walkers beyond this |z| have a value within e^-20 of its range's end: zero density there.
 Z_LIMIT = 20.0
 #: Format tag and version of the ``rattlefit`` group of a chain file.
-CHAIN_FORMAT, CHAIN_VERSION = "rattlefit-chain", 1
+CHAIN_FORMAT, CHAIN_VERSION = "rattlefit-chain", 2
+#: The group of a chain file's ``rattlefit`` that stores the likelihood.
+LIKELIHOOD = "likelihood"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -114,33 +114,22 @@ def log_prior(specs: Sequence[ParameterSpec], zs) -> np.ndarray:
 
 
 class LogPosterior:
-    """log p(z | d) of a batch of points ``(K, P)`` → ``(K,)`` (emcee's ``vectorize=True``).
-
-    ``mean_features`` maps points ``(k, P)`` to the mean simulated features ``(k, R, B)``;
-    ``data`` (R, B) are the measured features and ``noise`` weights their difference. Points
-    outside the support get ``-inf`` without being simulated, and so does any non-finite value.
-    ``n_evaluations`` counts the points simulated.
+    """log p(z | d) of a batch of points ``(K, P)`` → ``(K,)`` (emcee's ``vectorize=True``):
+    the priors of ``specs`` plus ``likelihood``'s log density
+    (:class:`~rattlefit.likelihood.protocol.Likelihood`, bound to the recordings). Points
+    outside the support get ``-inf`` without being evaluated, and so does any non-finite
+    value. ``n_evaluations`` counts the points the likelihood evaluated.
     """
 
-    def __init__(
-        self,
-        specs: Sequence[ParameterSpec],
-        data: np.ndarray,
-        noise: NoiseModel,
-        mean_features: Callable[[np.ndarray], np.ndarray],
-    ):
+    def __init__(self, specs: Sequence[ParameterSpec], likelihood: Likelihood):
         self.specs = tuple(specs)
-        self.data = np.asarray(data, dtype=float)
-        self.noise = noise
-        self.mean_features = mean_features
+        self.likelihood = likelihood
         self.n_evaluations = 0
 
     def log_likelihood(self, zs) -> np.ndarray:
         zs = np.atleast_2d(np.asarray(zs, dtype=float))
-        mean = np.asarray(self.mean_features(zs))
-        r = ((self.data - mean) / self.noise.sigma).reshape(len(zs), -1)
         self.n_evaluations += len(zs)
-        return -0.5 * self.noise.quadratic(r)
+        return np.asarray(self.likelihood.log_density(zs), dtype=float)
 
     def __call__(self, zs) -> np.ndarray:
         zs = np.atleast_2d(np.asarray(zs, dtype=float))
@@ -149,25 +138,6 @@ class LogPosterior:
         if np.any(ok):
             out[ok] += self.log_likelihood(zs[ok])
         return np.where(np.isfinite(out), out, -np.inf)
-
-
-class LearnedLogPosterior(LogPosterior):
-    """log p(z | d) on a learned likelihood
-    (:class:`~rattlefit.likelihood.model.LearnedLikelihood`): the same priors and contract as
-    :class:`LogPosterior`, each recording's likelihood the density its feature flow learned
-    (``−½ (|r|² + log-volume term)``). ``n_evaluations`` counts the points evaluated; nothing is
-    simulated."""
-
-    def __init__(self, specs: Sequence[ParameterSpec], like: LearnedLikelihood):
-        self.specs = tuple(specs)
-        self.like = like
-        self.n_evaluations = 0
-
-    def log_likelihood(self, zs) -> np.ndarray:
-        zs = np.atleast_2d(np.asarray(zs, dtype=float))
-        chi2, logdet = (np.asarray(x) for x in batch_chi2_terms(self.like, jnp.asarray(zs)))
-        self.n_evaluations += len(zs)
-        return -0.5 * np.sum(chi2 + logdet, axis=1)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -299,18 +269,20 @@ def _options_from_json(text: str) -> FitOptions:
 
 @dataclasses.dataclass(frozen=True)
 class ChainContext:
-    """What a chain needs besides the recordings: stored in the chain file's ``rattlefit``."""
+    """What a chain needs besides the recordings: stored in the chain file's ``rattlefit``.
+
+    likelihood : the fit's :class:`~rattlefit.likelihood.protocol.Likelihood` (a fit in this
+        process), or the chain file that stores it (group ``rattlefit/likelihood``, read once
+        the recordings' problem is known).
+    """
 
     fit_options: FitOptions
     z: np.ndarray
     covariance_z: np.ndarray
     data: np.ndarray
-    noise: NoiseModel | None
+    likelihood: Likelihood | Path
     recordings: list[str]
     seed: int
-    #: a fit on the learned likelihood: the likelihood itself (a fit in this process), or
-    #: the chain file that stores it (group ``rattlefit/learned_likelihood``)
-    learned: Learned | Path | None = None
 
 
 def write_context(path: Path, ctx: ChainContext) -> None:
@@ -324,27 +296,9 @@ def write_context(path: Path, ctx: ChainContext) -> None:
         g.attrs["fit_options"] = _options_json(ctx.fit_options)
         g.attrs["recordings"] = json.dumps(ctx.recordings)
         g.attrs["seed"] = ctx.seed
-        arrays = [("z", ctx.z), ("covariance_z", ctx.covariance_z), ("data", ctx.data)]
-        if ctx.noise is not None:
-            g.attrs["sigma_dof"] = ctx.noise.sigma_dof
-            arrays += [
-                ("sigma", ctx.noise.sigma),
-                ("whiten", ctx.noise.whiten),
-                ("row_scale", ctx.noise.row_scale),
-                ("chi2_recordings", ctx.noise.chi2_recordings),
-            ]
-        for name, value in arrays:
+        for name, value in (("z", ctx.z), ("covariance_z", ctx.covariance_z), ("data", ctx.data)):
             g.create_dataset(name, data=np.asarray(value, dtype=float))
-        if isinstance(ctx.learned, Learned):
-            learned = ctx.learned
-            write_group(
-                g.create_group(GROUP),
-                learned.likelihood,
-                learned.design,
-                key=learned.key,
-                seed=learned.seed,
-                options=learned.options,
-            )
+        save_likelihood(g.create_group(LIKELIHOOD), ctx.likelihood)
 
 
 def read_context(path: Path) -> ChainContext | None:
@@ -368,25 +322,17 @@ def read_context(path: Path) -> ChainContext | None:
                     f"{path}: /rattlefit@format: expected {CHAIN_FORMAT} version "
                     f"{CHAIN_VERSION}, got {g.attrs.get('format')} {g.attrs.get('version')}"
                 )
-            arr = {k: np.asarray(g[k]) for k in g if k != GROUP}
-            noise = None
-            if "sigma" in arr:
-                noise = NoiseModel(
-                    arr["sigma"],
-                    arr["whiten"],
-                    arr["row_scale"],
-                    arr["chi2_recordings"],
-                    int(g.attrs["sigma_dof"]),
-                )
+            if LIKELIHOOD not in g:
+                raise RattlefitError(f"{path}: /rattlefit/{LIKELIHOOD}: missing")
+            arr = {k: np.asarray(g[k]) for k in ("z", "covariance_z", "data")}
             return ChainContext(
                 _options_from_json(g.attrs["fit_options"]),
                 arr["z"],
                 arr["covariance_z"],
                 arr["data"],
-                noise,
+                path,
                 json.loads(g.attrs["recordings"]),
                 int(g.attrs["seed"]),
-                path if GROUP in g else None,
             )
     except RattlefitError:
         raise
@@ -491,20 +437,16 @@ def run_chain(
 
 def _context_of(fit: FitResult, recordings: Sequence[Recording], seed: int) -> ChainContext:
     """A new chain's context from the fit it starts at."""
-    if fit.state.noise is None and fit.state.learned is None:
-        raise RattlefitError(
-            "sample: the fit result carries neither a noise model nor a learned likelihood "
-            "(run identify in this process)"
-        )
+    if fit.state.likelihood is None:
+        raise RattlefitError("sample: the fit result holds no likelihood (run identify first)")
     return ChainContext(
         fit.state.options,
         np.asarray(fit.state.z),
         np.asarray(fit.state.covariance_z),
         np.stack(fit.spectra.measured),
-        fit.state.noise,
+        fit.state.likelihood,
         [str(r.path) for r in recordings],
         seed,
-        fit.state.learned,
     )
 
 
@@ -526,21 +468,12 @@ def _target(
             f"{path}: /rattlefit/data: this chain was run on other recordings "
             f"({', '.join(ctx.recordings)}); give those, or a new --backend file"
         )
-    if isinstance(ctx.learned, Learned):
-        return problem, LearnedLogPosterior(
-            problem.specs, ctx.learned.likelihood.replace_data(data)
-        )
-    if ctx.learned is not None:  # stored in the chain file
-        with h5py.File(ctx.learned, "r") as f:
-            where = f"{ctx.learned}: /rattlefit/{GROUP}"
-            stored = read_group(f["rattlefit"][GROUP], problem, where)
-        return problem, LearnedLogPosterior(problem.specs, stored.likelihood)
-    mean_features = functools.partial(_mean_features, problem)
-    return problem, LogPosterior(problem.specs, data, ctx.noise, mean_features)
-
-
-def _mean_features(problem, zs) -> np.ndarray:
-    return np.asarray(problem.mean_of(evaluate(problem, zs)))
+    likelihood = ctx.likelihood
+    if isinstance(likelihood, Path):  # stored in the chain file
+        with h5py.File(likelihood, "r") as f:
+            where = f"{likelihood}: /rattlefit/{LIKELIHOOD}"
+            likelihood = load_likelihood(f["rattlefit"][LIKELIHOOD], problem, where)
+    return problem, LogPosterior(problem.specs, likelihood.bind(problem))
 
 
 def _chain_backend(path: Path, ctx: ChainContext, resumed: bool) -> emcee.backends.HDFBackend:
@@ -587,10 +520,7 @@ def sample(
     problem, target = _target(recordings, ctx, path, None if resumed else fit)
     specs = problem.specs
     hdf = None if path is None else _chain_backend(path, ctx, resumed)
-    if isinstance(target, LearnedLogPosterior):
-        say("the learned likelihood: no simulation per point")
-    else:
-        say(f"{ctx.fit_options.n_realisations} simulated realisations per point")
+    say(f"each point scored on the {target.likelihood.kind} likelihood")
     sampler = run_chain(
         target,
         ctx.z,

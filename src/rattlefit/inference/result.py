@@ -13,14 +13,15 @@ from scipy import stats
 
 from ..confidence import Z95
 from ..documents import FIT
+from ..errors import RattlefitError
 from ..io.recording import counts_sha256
+from ..likelihood.protocol import Likelihood
 from ..physics.model import RattleParams
 from ..problem.options import FitOptions
 from ..problem.parameters import MOMENTUM, ParameterSpec
 from ..problem.problem import Problem, problem_from
 from ..quantities import DRAG_TORQUE, VISCOSITY, VISCOSITY_SCALE
 from .advice import what_would_pin
-from .noise import NoiseModel
 from .outcome import SearchEnd
 
 #: χ² p-value below which a fit is flagged as poor (:attr:`FitResult.poor_fit`).
@@ -206,22 +207,19 @@ class FittedState:
     options : the :class:`~rattlefit.problem.options.FitOptions` of the fit.
     z : (P,) the optimum in the unconstrained coordinates.
     covariance_z : (P, P) Laplace covariance in z.
-    noise : the :class:`~rattlefit.inference.noise.NoiseModel` fixed at the optimum (on
-        the learned likelihood, from its covariance there:
-        :func:`~rattlefit.inference.learned.learned_noise`); None when read back from JSON.
+    likelihood : the fit's :class:`~rattlefit.likelihood.protocol.Likelihood`, its noise
+        model at the optimum; read back from a fit's document, the synthetic likelihood's
+        noise model not yet bound to a problem, or the learned likelihood stored beside it.
     problem : the fit's :class:`~rattlefit.problem.problem.Problem` at the optimum (its
         realisations and band spread, the noise model's ``sigma``); None when the fit did
         not run in this process (:meth:`problem_for` rebuilds it).
-    learned : the :class:`~rattlefit.likelihood.store.Learned` likelihood of a fit on it
-        (the likelihood, its design, test-point key and seed); None otherwise.
     """
 
     options: FitOptions
     z: np.ndarray
     covariance_z: np.ndarray
-    noise: NoiseModel | None = dataclasses.field(default=None, repr=False, compare=False)
+    likelihood: Likelihood | None = dataclasses.field(default=None, repr=False, compare=False)
     problem: Problem | None = dataclasses.field(default=None, repr=False, compare=False)
-    learned: object = dataclasses.field(default=None, repr=False, compare=False)
 
     def problem_for(self, recordings, sigma) -> Problem:
         """The fit's problem, with its band spread ``sigma`` (R arrays (F,)) at the optimum:
@@ -232,6 +230,13 @@ class FittedState:
             return self.problem
         problem, _, _ = problem_from(recordings, self.options)
         return dataclasses.replace(problem, sigma=jnp.asarray(np.stack(sigma)))
+
+    def likelihood_for(self, recordings, sigma) -> Likelihood:
+        """The fit's likelihood bound to its problem (:meth:`problem_for`). Raises
+        :class:`~rattlefit.errors.RattlefitError` for a fit that holds none."""
+        if self.likelihood is None:
+            raise RattlefitError("the fit holds no likelihood (run identify in this process)")
+        return self.likelihood.bind(self.problem_for(recordings, sigma))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -251,6 +256,10 @@ class FitResult:
         """The fit's problem at the optimum (:meth:`FittedState.problem_for` with the fit's
         spread)."""
         return self.state.problem_for(recordings, self.spectra.sigma)
+
+    def likelihood_for(self, recordings) -> Likelihood:
+        """The fit's likelihood bound to its problem (:meth:`FittedState.likelihood_for`)."""
+        return self.state.likelihood_for(recordings, self.spectra.sigma)
 
     def to_json(self) -> dict:
         """The ``--output`` document (format :data:`rattlefit.documents.FIT`):
@@ -312,7 +321,8 @@ def below_optimum(profiles: dict) -> dict | None:
     return {"depth": float(-low), "parameter": name}
 
 
-#: The noise model's arrays as the document stores them (:class:`NoiseModel`'s fields).
+#: The noise model's arrays as the document stores them
+#: (:class:`~rattlefit.likelihood.noise.NoiseModel`'s fields).
 NOISE_ARRAYS = ("sigma", "whiten", "row_scale", "chi2_recordings")
 
 
@@ -320,11 +330,12 @@ def state_document(result: FitResult) -> dict | None:
     """The document's ``state``: what :func:`read_fit` needs to restore
     :attr:`FitResult.state`; None without a noise model (nothing to start from)."""
     st = result.state
-    if st.noise is None:
+    model = None if st.likelihood is None else st.likelihood.noise
+    if model is None:
         return None
-    noise = {k: np.asarray(getattr(st.noise, k)).tolist() for k in NOISE_ARRAYS}
-    noise["sigma_dof"] = int(st.noise.sigma_dof)
-    share = st.noise.regime_share
+    noise = {k: np.asarray(getattr(model, k)).tolist() for k in NOISE_ARRAYS}
+    noise["sigma_dof"] = int(model.sigma_dof)
+    share = model.regime_share
     noise["regime_share"] = None if share is None else np.asarray(share).tolist()
     return {
         "z": np.asarray(st.z, dtype=float).tolist(),

@@ -17,7 +17,9 @@ import hashlib
 import io
 import json
 import os
+from collections.abc import Sequence
 from pathlib import Path
+from typing import ClassVar
 
 import equinox as eqx
 import h5py
@@ -28,8 +30,10 @@ import numpy as np
 from ..errors import RattlefitError
 from ..problem.problem import Problem
 from .density import DensityOptions, FeatureDensity, Whitening, make_flow
+from .information import SMOOTH_STEP, moment_information
 from .learn import Design
-from .model import LearnedLikelihood
+from .model import LearnedLikelihood, batch_chi2_terms
+from .noise import NoiseModel
 
 #: Format tag and version of a stored learned likelihood.
 FORMAT, VERSION = "rattlefit-learned-likelihood", 2
@@ -93,34 +97,105 @@ def write_group(
         d.attrs["columns"] = np.asarray(density.columns)
 
 
-def write_learned(
-    path: str | os.PathLike,
-    like: LearnedLikelihood,
-    design: Design,
-    *,
-    key: str,
-    seed: int,
-    options: DensityOptions,
-) -> Path:
-    """Write ``like`` (see :func:`write_group`) to the file ``path``, atomically; returns it."""
+def write_learned(path: str | os.PathLike, learned: Learned) -> Path:
+    """Write ``learned`` (:meth:`Learned.save`) to the file ``path``, atomically; returns
+    it."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp")
     with h5py.File(tmp, "w") as f:
-        write_group(f.create_group(GROUP), like, design, key=key, seed=seed, options=options)
+        learned.save(f.create_group(GROUP))
     os.replace(tmp, path)
     return path
 
 
 @dataclasses.dataclass(frozen=True)
 class Learned:
-    """A stored learned likelihood: the likelihood (on the problem it was read for), its
-    design, key, seed and flow options."""
+    """A learned likelihood (a :class:`~rattlefit.likelihood.protocol.Likelihood`): the
+    likelihood on the problem it was read for, its design (None: not stored with it, and it
+    cannot be saved), test-point key, seed and flow options, and the noise model at a fit's
+    optimum (:meth:`at_optimum`; None before)."""
 
+    kind: ClassVar[str] = "learned"
     likelihood: LearnedLikelihood
-    design: Design
-    key: str
-    seed: int
-    options: DensityOptions
+    design: Design | None = None
+    key: str = ""
+    seed: int = 0
+    options: DensityOptions = dataclasses.field(default_factory=DensityOptions)
+    noise: NoiseModel | None = dataclasses.field(default=None, repr=False, compare=False)
+
+    def bind(self, problem: Problem) -> Learned:
+        """This likelihood with ``problem``'s measured features as its data."""
+        return dataclasses.replace(self, likelihood=self.likelihood.replace_data(problem.data))
+
+    def log_density(self, zs) -> np.ndarray:
+        """log p(d | z) up to a constant at each point of ``zs`` (K, P): each recording's
+        learned density, ``−½ (|r|² + log-volume term)``, summed: (K,)."""
+        zs = jnp.atleast_2d(jnp.asarray(zs, dtype=float))
+        chi2, logdet = (np.asarray(x) for x in batch_chi2_terms(self.likelihood, zs))
+        return -0.5 * np.sum(chi2 + logdet, axis=1)
+
+    def information(self, z, names: Sequence[str], *, rng=None) -> np.ndarray:
+        """The recordings' Fisher information (P, P) about ``names`` at ``z``, per unit log,
+        from the learned mean and covariance
+        (:func:`~rattlefit.likelihood.information.moment_information`); ``rng`` is unused."""
+        return moment_information(
+            lambda x: self.likelihood.moments(jnp.asarray(x)),
+            self.likelihood.specs,
+            z,
+            names,
+            step=SMOOTH_STEP,
+        )
+
+    def at_optimum(self, z, n_realisations: int) -> Learned:
+        """This likelihood with its noise model at ``z`` (:func:`learned_noise`)."""
+        total = np.asarray(self.likelihood.moments(jnp.asarray(z))[1])
+        chi2_rec, _ = self.likelihood.chi2_terms(jnp.asarray(z))
+        noise = learned_noise(total, n_realisations, np.asarray(chi2_rec), self.design.u.shape[0])
+        return dataclasses.replace(self, noise=noise)
+
+    def save(self, g: h5py.Group) -> None:
+        """Write the likelihood (:func:`write_group`) and any noise model into group ``g``.
+        Raises :class:`~rattlefit.errors.RattlefitError` for a likelihood without its
+        design."""
+        if self.design is None:
+            raise RattlefitError(f"{g.name}: a learned likelihood without its design")
+        write_group(
+            g, self.likelihood, self.design, key=self.key, seed=self.seed, options=self.options
+        )
+        if self.noise is not None:
+            self.noise.save(g.create_group("noise"))
+
+    @classmethod
+    def load(cls, g: h5py.Group, problem: Problem, where: str) -> Learned:
+        """The likelihood :meth:`save` wrote into ``g``, for ``problem``
+        (:func:`read_group`)."""
+        learned = read_group(g, problem, where)
+        if "noise" in g:
+            learned = dataclasses.replace(learned, noise=NoiseModel.load(g["noise"], where))
+        return learned
+
+
+def learned_noise(total, n_realisations: int, chi2_recordings, simulations: int) -> NoiseModel:
+    """The noise model of a fit on the learned likelihood, from the learned density's feature
+    covariance ``total`` (R, F, F) at the optimum: each feature's spread and the features'
+    correlation (the whitening block-diagonal, since recordings are independent), each spread
+    widened by the Monte Carlo error of a mean of ``n_realisations`` realisations, as the
+    synthetic likelihood's is. No Birge inflation (``row_scale`` one): the learned density's
+    spread is checked against fresh simulations instead (:mod:`rattlefit.likelihood.check`).
+    ``chi2_recordings`` (R,) are each recording's χ² there, ``simulations`` what it was
+    learned from per recording (its ``sigma_dof``)."""
+    cov = np.asarray(total)
+    n_rec, n_feat = cov.shape[:2]
+    sigma = np.sqrt(np.diagonal(cov, axis1=1, axis2=2) * (1.0 + 1.0 / n_realisations))
+    whiten = np.zeros((n_rec * n_feat, n_rec * n_feat))
+    for k in range(n_rec):
+        sd = np.sqrt(np.diag(cov[k]))
+        corr = cov[k] / np.outer(sd, sd) + 1e-9 * np.eye(n_feat)
+        sl = slice(k * n_feat, (k + 1) * n_feat)
+        whiten[sl, sl] = np.linalg.inv(np.linalg.cholesky(corr))
+    return NoiseModel(
+        sigma, whiten, np.ones(n_rec * n_feat), np.asarray(chi2_recordings, float), int(simulations)
+    )
 
 
 def read_group(g: h5py.Group, problem: Problem, where: str) -> Learned:
@@ -161,7 +236,7 @@ def read_learned(path: str | os.PathLike, problem: Problem) -> Learned:
         with h5py.File(path, "r") as f:
             if GROUP not in f:
                 raise RattlefitError(f"{path}: /{GROUP}: missing; not a learned likelihood")
-            return read_group(f[GROUP], problem, f"{path}: /{GROUP}")
+            return Learned.load(f[GROUP], problem, f"{path}: /{GROUP}")
     except RattlefitError:
         raise
     except (OSError, KeyError, ValueError, TypeError) as exc:

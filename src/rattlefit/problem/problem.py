@@ -400,12 +400,13 @@ def dither_draws(specs, films, n: int, dither: float, rng) -> tuple[np.ndarray, 
     return offsets, rng.uniform(size=(n, 2))
 
 
-def redrawn(problem: Problem, options: FitOptions, rng) -> Problem:
-    """``problem`` with its realisations' dither and encoder phases drawn afresh from ``rng``:
-    an independent set of realisation settings (with fresh release states, an independent
-    set of realisations)."""
-    n = problem.dither.shape[0]
-    dither, phases = dither_draws(problem.specs, problem.films, n, options.dither, rng)
+def redrawn(problem: Problem, dither: float, rng, n: int | None = None) -> Problem:
+    """``problem`` with its realisations' dither (``dither`` × N(0, 1) on the dithered
+    parameters, :func:`dither_draws`) and encoder phases drawn afresh from ``rng``, for ``n``
+    realisations (default: as many as it has): an independent set of realisation settings
+    (with fresh release states, an independent set of realisations)."""
+    n = problem.dither.shape[0] if n is None else n
+    dither, phases = dither_draws(problem.specs, problem.films, n, dither, rng)
     return eqx.tree_at(
         lambda q: (q.dither, q.encoder_phase), problem, (jnp.asarray(dither), jnp.asarray(phases))
     )

@@ -18,12 +18,12 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ...confidence import Z95, Z95_ONE_SIDED
+from ...likelihood.synthetic import synthetic_cost
 from ...problem.forward import chunk_size, evaluate, residuals
 from ...problem.options import FitOptions
 from ...problem.parameters import Z_END
 from ...problem.problem import Problem, redrawn, release_states
 from ..laplace import Laplace
-from ..noise import synthetic_cost
 from .curves import (
     CONTINUATION_LOG_STEP,
     PROFILE_JITTER,
@@ -76,7 +76,7 @@ def monte_carlo_sd(lap: Laplace, n_cov: int, dof_rec: float) -> float:
     """Standard deviation of the Monte Carlo noise of a difference of two costs of ``n_cov``
     realisations: each cost varies by ≈ 4χ²/(n+1) from the mean features (in the inflated
     units) and ≈ 2B/ν from the log-spread term of the R·B bands (ν the spread's degrees of
-    freedom; :func:`~rattlefit.inference.noise.synthetic_cost`)."""
+    freedom; :func:`~rattlefit.likelihood.synthetic.synthetic_cost`)."""
     chi2_rec = lap.noise.chi2_recordings
     inflation = np.maximum(1.0, chi2_rec / dof_rec)
     var_cost = np.sum(4.0 * np.maximum(chi2_rec, dof_rec) / (n_cov + 1) / inflation**2)
@@ -104,7 +104,7 @@ def roughness_costs(lap: Laplace, options: FitOptions, points, first_dcosts, y0,
     z = points[0]
     for child in rng.spawn(options.roughness_sets - 1):
         per = evaluate(
-            redrawn(lap.problem, options, child),
+            redrawn(lap.problem, options.dither, child),
             points,
             release_states(lap.problem, z, y0.shape[1], child),
         )
