@@ -47,7 +47,8 @@ from scipy import stats
 
 import rattlefit as rf
 from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
-from rattlefit.diagnosis.evidence import POINTS_TO, findings
+from rattlefit.diagnosis.evidence import findings
+from rattlefit.diagnosis.policy import POINTS_TO
 from rattlefit.report import verdict_sentence
 from rattlefit.testing.shared import recordings_dir
 from validation.diagnose_sets import DISSIPATION, clean_set, injected_set

@@ -17,6 +17,7 @@ from click.testing import CliRunner
 import rattlefit as rf
 from rattlefit import FitOptions, synthesize
 from rattlefit.cli import main
+from rattlefit.diagnosis import policy
 from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
 from rattlefit.diagnosis.outcome import EffectOutcome, gap_closed
 from rattlefit.diagnosis.result import Diagnosis, baseline_warnings
@@ -452,8 +453,8 @@ def test_a_viscosity_drift_is_named_only_when_the_recording_shows_a_drift(drift_
     # shaft inertia and friction left significant rests. A drift shows as a trend of the
     # rattle's statistics over the recording; without that finding it is not fitted, and the
     # gap stays unexplained.
-    from rattlefit.diagnosis.diagnose import effects_to_try
     from rattlefit.diagnosis.evidence import Finding
+    from rattlefit.diagnosis.policy import Skipped, effects_to_try
     from rattlefit.features.orders import AngleTest
 
     drift = _outcome("viscosity_drift", 261.8, 30.5, 0.29)
@@ -467,10 +468,10 @@ def test_a_viscosity_drift_is_named_only_when_the_recording_shows_a_drift(drift_
         diag = dataclasses.replace(diag, findings=(finding,))
     assert diag.verdict.label == ("viscosity_drift" if drift_found else "unexplained")
     options = DiagnoseOptions()
-    tried, skipped = effects_to_try(options, diag.evidence.seen, band_gap=True)
+    tried, skipped = effects_to_try(options.effects, diag.evidence.seen, band_gap=True)
     assert ("viscosity_drift" in tried) == drift_found
-    assert ("viscosity_drift" in skipped) != drift_found
-    assert "flank_friction" in tried and "runout" in skipped  # the rest as before
+    assert skipped.get("viscosity_drift") == (None if drift_found else Skipped.NOT_FOUND)
+    assert "flank_friction" in tried and skipped["runout"] is Skipped.NOT_SEEN
 
 
 def test_the_size_interval_is_where_the_profile_rises_by_the_threshold(monkeypatch):
@@ -852,7 +853,7 @@ def test_the_best_candidates_that_leave_a_misfit_are_fitted_on_with_the_nuisance
         0.01,
         lambda msg: None,
     )
-    assert diagnose_module.CONTENDERS == 2
+    assert policy.CONTENDERS == 2
     assert settled == {"speed_dependent_drag", "mesh_damping"}
     assert helds == [[0], [0]]  # the nuisance (coordinate 1) free
     assert [(o.name, o.chi2_with) for o in outcomes] == [

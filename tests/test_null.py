@@ -13,7 +13,8 @@ from scipy import stats
 
 import rattlefit as rf
 from rattlefit.diagnosis.evidence import Finding, findings
-from rattlefit.diagnosis.null import COVERED_P, null_p, rejudged, with_simulated_null
+from rattlefit.diagnosis.null import null_p, rejudged, with_simulated_null
+from rattlefit.diagnosis.policy import COVERED_P
 from rattlefit.diagnosis.verdict import Evidence, decide
 from rattlefit.features.orders import AngleTest, drive_order_evidence, tooth_offsets
 from rattlefit.io.recording import OperatingPoint

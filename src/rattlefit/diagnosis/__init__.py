@@ -3,7 +3,8 @@ and how far it shrinks once that effect is in (:func:`diagnose`)."""
 
 from .diagnose import DiagnoseOptions, diagnose
 from .outcome import EffectOutcome
-from .result import MISSED_Z, Diagnosis
+from .policy import MISSED_Z
+from .result import Diagnosis
 from .verdict import Evidence, Verdict, decide
 
 __all__ = [

@@ -74,10 +74,19 @@ from ..reproducibility import platform_info
 from ..rig import setup
 from ..util import stamped
 from .cycle import cycle_gap
-from .evidence import ENCODER_VISIBLE, FOUND_ONLY, candidate_static, findings
+from .evidence import candidate_static, findings
 from .null import NULL_REALISATIONS, with_simulated_null
 from .outcome import EffectOutcome
-from .pairs import pair_candidates, pair_name, settled_single, try_pair
+from .pairs import pair_candidates, settled_single, try_pair
+from .policy import (
+    CONTENDERS,
+    SIGNIFICANCE,
+    effects_to_try,
+    in_program,
+    is_pair,
+    misses,
+    pair_name,
+)
 from .result import Diagnosis, baseline_warnings
 from .screening import distinct_rows, free_alternatives, screen
 from .size import relevant, size_intervals
@@ -104,9 +113,6 @@ from .verdict import Evidence, decide
 FINAL_FACTOR = 2
 #: Each candidate is fitted from this many of its screening's best starts.
 CANDIDATE_STARTS = 2
-#: How many supported candidates that leave a significant misfit are fitted on until settled,
-#: the nuisances free (:func:`settle_contenders`).
-CONTENDERS = 2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -141,7 +147,7 @@ class DiagnoseOptions:
     iterations: int = 3
     base_iterations: int = 12
     n_final: int | None = None
-    significance: float = 0.01
+    significance: float = SIGNIFICANCE
     every_effect: bool = False
     null_realisations: int = NULL_REALISATIONS
 
@@ -264,37 +270,6 @@ def trial_of(
     )
 
 
-def in_program(options: DiagnoseOptions, seen: set[str]) -> tuple[str, ...]:
-    """The candidates the compiled program holds: every effect of ``options`` but those the
-    encoders see and did not (:data:`~rattlefit.diagnosis.evidence.ENCODER_VISIBLE`), unless
-    ``options.every_effect``."""
-    if options.every_effect:
-        return options.effects
-    return tuple(n for n in options.effects if n not in ENCODER_VISIBLE or n in seen)
-
-
-def effects_to_try(
-    options: DiagnoseOptions, seen: set[str], band_gap: bool
-) -> tuple[list[str], dict[str, str]]:
-    """The effects fitted to the band spectrum, and why each other one is not: an effect
-    with a model-free test (:data:`~rattlefit.diagnosis.evidence.FOUND_ONLY`) is named only
-    when that test finds it, and a band candidate only explains a significant band gap
-    (unless ``options.every_effect``)."""
-    tried, skipped = [], {}
-    for name in options.effects:
-        if options.every_effect:
-            tried.append(name)
-        elif name in ENCODER_VISIBLE and name not in seen:
-            skipped[name] = "the encoders show no sign of it"
-        elif name in FOUND_ONLY and name not in seen:
-            skipped[name] = "the recording shows no drift (its trend test finds none)"
-        elif name not in FOUND_ONLY and not band_gap:
-            skipped[name] = "the model without effects fits the band spectrum within its noise"
-        else:
-            tried.append(name)
-    return tried, skipped
-
-
 def by_misfit(outcomes) -> list[EffectOutcome]:
     """``outcomes`` judged first, the least misfit left first."""
     return sorted(outcomes, key=lambda o: (bool(o.failure), o.chi2_with))
@@ -321,7 +296,7 @@ def settle_contenders(
     significance: float,
     say,
 ) -> tuple[list[EffectOutcome], frozenset[str]]:
-    """The :data:`CONTENDERS` supported single candidates with the least misfit that still
+    """The :data:`~.policy.CONTENDERS` supported single candidates with the least misfit that still
     leave a significant one (``p_after`` below ``significance``), each fitted on until
     settled with the nuisances free, as the model without effects was
     (:func:`~rattlefit.diagnosis.pairs.settled_single`): a few Gauss–Newton steps from a
@@ -331,7 +306,7 @@ def settle_contenders(
     contenders = [
         o
         for o in outcomes
-        if o.supported and not o.failure and "+" not in o.name and o.p_after < significance
+        if o.supported and not o.failure and not is_pair(o.name) and o.p_after < significance
     ][:CONTENDERS]
     for first in contenders:
         settled = settle(trial, first, fitted, z_base, chi2_without, level, say)
@@ -385,7 +360,7 @@ def try_pairs(
     for _, second in pairs:
         say(f"fitting {settled.name} and {second.name} together …")
         t0 = time.perf_counter()
-        outcome, fitted[pair_name(settled, second)] = try_pair(
+        outcome, fitted[pair_name(settled.name, second.name)] = try_pair(
             trial, settled, second, fitted, chi2_without, level
         )
         outcome = dataclasses.replace(outcome, wall_time=time.perf_counter() - t0)
@@ -545,12 +520,16 @@ def diagnose(
     baseline = identified(recordings, options, baseline, progress, say)
     found, seen = simulated_null(found, recordings, baseline, options, say)
     trial = trial_of(
-        recordings, baseline, options, in_program(options, seen), candidate_static(found)
+        recordings,
+        baseline,
+        options,
+        in_program(options.effects, seen, options.every_effect),
+        candidate_static(found),
     )
     z_base, chi2_without, refit_costs, warnings = base_model(trial, baseline, say)
     cycle = drive_cycle(trial, z_base, recordings, baseline, options.significance, say)
-    gap = stats.chi2.sf(chi2_without, trial.dof) < options.significance
-    tried, skipped = effects_to_try(options, seen, gap)
+    gap = misses(stats.chi2.sf(chi2_without, trial.dof), options.significance)
+    tried, skipped = effects_to_try(options.effects, seen, gap, options.every_effect)
     for name, why in skipped.items():
         say(f"not fitting {name}: {why}")
     level = options.significance / max(len(tried), 1)  # Bonferroni

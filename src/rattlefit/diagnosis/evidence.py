@@ -24,39 +24,7 @@ from ..features.orders import (
     tooth_evidence,
 )
 from ..io.recording import Recording
-
-#: The effect each test points to, by the test name's first part.
-POINTS_TO = {
-    "runout": "runout",
-    "mesh_order": "tooth_errors",
-    "tooth": "tooth_defect",
-    "drift": "viscosity_drift",
-    "drive_order": "drive_ripple",
-}
-#: Effects that the encoders see directly (a kinematic error moves the flanks, a drive
-#: ripple moves the primary shaft): such an effect is named only when its model-free test
-#: finds it, never from the band spectrum alone, where a flexible candidate can absorb a
-#: model-form difference.
-ENCODER_VISIBLE = frozenset({"runout", "tooth_errors", "tooth_defect", "drive_ripple"})
-#: Effects named only when their model-free test finds them: those the encoders see, and a
-#: drift of the oil's viscosity, which shows as a trend of the rattle's statistics over the
-#: recording (the drift test). Fitted to the band spectrum alone, a drift is one more dissipation
-#: parameter, free to absorb a model-form difference (on a clean periodic oil-jet recording
-#: it closed a band gap of χ² 262 to 30). Unlike those the encoders see, it stays in the
-#: compiled program when not found: its absent end costs nothing.
-FOUND_ONLY = ENCODER_VISIBLE | {"viscosity_drift"}
-#: Smallest drive ripple worth naming, as a share of the speed fluctuation's acceleration
-#: amplitude 2π f ΔΩ.
-RELEVANT_RIPPLE_SHARE = 0.01
-#: Smallest pattern worth naming, as a gap error on the pitch circle (m): below about 2 µm
-#: of run-out or a tooth's deviation, gear quality classes do not tell gears apart. The
-#: drift test has no floor (its statistics are logarithms and shares).
-RELEVANT_SIZE_M = {"runout": 2e-6, "mesh_order": 1e-6, "tooth": 2e-6}
-#: A pattern is worth naming when its size, less this many standard errors, still reaches
-#: the floor: a one-sided test (about 2.3 % at 2) that the pattern exceeds what is worth
-#: naming, not only that it differs from zero. Thousands of impacts make a sub-micrometre
-#: pattern significant; the floor keeps a pattern of that size from being named.
-RELEVANCE_Z = 2.0
+from .policy import POINTS_TO, RELEVANCE_Z, RELEVANT_RIPPLE_SHARE, RELEVANT_SIZE_M
 
 
 @dataclasses.dataclass(frozen=True)
@@ -66,7 +34,7 @@ class Finding:
     recording : index of the recording; test : the test
     (:class:`~rattlefit.features.orders.AngleTest`); effect : the effect it points to;
     level : the p-value below which it counts; significant : p below ``level`` and the
-    pattern at least :data:`RELEVANT_SIZE_M`.
+    pattern at least :data:`~.policy.RELEVANT_SIZE_M`.
     """
 
     recording: int
@@ -106,9 +74,11 @@ def kind_of(test: AngleTest) -> str:
 
 
 def relevant(test: AngleTest, recording: Recording) -> bool:
-    """The pattern is large enough to name: its size less :data:`RELEVANCE_Z` standard
-    errors reaches the floor (:data:`RELEVANT_SIZE_M`, :data:`RELEVANT_RIPPLE_SHARE`; a test
-    without a floor is always relevant)."""
+    """The pattern is large enough to name: its size less
+    :data:`~.policy.RELEVANCE_Z` standard errors reaches the floor
+    (:data:`~.policy.RELEVANT_SIZE_M`,
+    :data:`~.policy.RELEVANT_RIPPLE_SHARE`; a test without a floor is
+    always relevant)."""
     kind = kind_of(test)
     if kind == "drive_order":
         op = recording.operating

@@ -12,8 +12,8 @@ reconstructs it, read through the encoders;
 measured on each exactly as on the recording
 (:func:`~rattlefit.features.orders.encoder_statistics`).
 The null covers a finding when the recording's pattern is no larger than the model without
-effects makes it commonly: a one-sided p of at least :data:`COVERED_P`, the null's logarithm
-taken as normal with a robust centre and spread (:func:`null_p`). A covered finding is not
+effects makes it commonly: a one-sided p of at least :data:`~.policy.COVERED_P`, the null's
+logarithm taken as normal with a robust centre and spread (:func:`null_p`). A covered finding is not
 named, whatever its decoy test says: a pattern that the model without effects makes as
 strongly is no evidence of an effect. The null only takes findings away; it names none.
 """
@@ -32,17 +32,12 @@ from ..inference.realisation import fitted_recordings
 from ..inference.result import FitResult
 from ..io.recording import Recording
 from .evidence import Finding, kind_of
+from .policy import COVERED_P, FLANK_PATTERN_TESTS
 
 #: Recordings of the fitted model behind each recording's null.
 NULL_REALISATIONS = 50
-#: A finding whose size has at least this one-sided p under the fitted model's null is covered
-#: by it (:func:`rejudged`).
-COVERED_P = 0.05
 #: Least spread of the null's logarithm (:func:`null_p`): a factor e^0.1 between realisations.
 LOG_SPREAD_FLOOR = 0.1
-#: The test families whose null is simulated (the drive-order test's null is the recording's
-#: own smooth drive through its encoder already, and drift has no flank pattern).
-SIMULATED = ("runout", "mesh_order", "tooth")
 
 
 def null_statistics(
@@ -73,7 +68,7 @@ def rejudged(f: Finding, observed: float, null: np.ndarray) -> Finding:
     """``f`` with its pattern's size ``observed`` set against the ``null`` sizes: ``detail``
     gains ``null_p`` (:func:`null_p`), ``null_exceeding`` (how many null values reach the
     observed one), ``null_median`` and ``null_realisations``; the finding stays significant
-    only when the null does not cover it (``null_p`` below :data:`COVERED_P`)."""
+    only when the null does not cover it (``null_p`` below :data:`~.policy.COVERED_P`)."""
     p = null_p(observed, null)
     detail = f.test.detail | {
         "null_p": p,
@@ -94,12 +89,12 @@ def with_simulated_null(
     seed: np.random.SeedSequence,
     say: Callable[[str], None] = lambda message: None,
 ) -> list[Finding]:
-    """``found`` with the encoder findings (:data:`SIMULATED`) of every recording where one
-    of them is significant set against the fitted model's null (:func:`null_statistics`,
-    ``n`` recordings from child k of ``seed`` for recording k; :func:`rejudged`); the others
-    as they were. ``n`` = 0 leaves ``found`` unchanged."""
+    """``found`` with the encoder findings (:data:`~.policy.FLANK_PATTERN_TESTS`) of every
+    recording where one of them is significant set against the fitted model's null
+    (:func:`null_statistics`, ``n`` recordings from child k of ``seed`` for recording k;
+    :func:`rejudged`); the others as they were. ``n`` = 0 leaves ``found`` unchanged."""
     suspects = sorted(
-        {f.recording for f in found if f.significant and kind_of(f.test) in SIMULATED}
+        {f.recording for f in found if f.significant and kind_of(f.test) in FLANK_PATTERN_TESTS}
     )
     if n == 0 or not suspects:
         return list(found)
@@ -114,7 +109,7 @@ def with_simulated_null(
     # a finding's amplitude is the size encoder_statistics measures on the null recordings
     return [
         rejudged(f, f.test.amplitude, nulls[f.recording][f.test.name])
-        if f.recording in nulls and kind_of(f.test) in SIMULATED
+        if f.recording in nulls and kind_of(f.test) in FLANK_PATTERN_TESTS
         else f
         for f in found
     ]

@@ -6,6 +6,8 @@ import dataclasses
 
 import numpy as np
 
+from .policy import effects_of
+
 
 @dataclasses.dataclass(frozen=True)
 class EffectOutcome:
@@ -68,7 +70,7 @@ class EffectOutcome:
     @property
     def effects(self) -> tuple[str, ...]:
         """The effects in this outcome: one, or two fitted together."""
-        return tuple(self.name.split("+"))
+        return effects_of(self.name)
 
     def as_dict(self) -> dict:
         d = dataclasses.asdict(self)

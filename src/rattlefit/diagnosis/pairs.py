@@ -3,7 +3,7 @@
 A recording can carry two unmodelled effects, and then neither alone closes the band gap.
 The best supported single candidate (or, when the encoders found an effect, that effect's
 candidate: it is known to be present) is paired with each of the next
-:data:`PAIR_PARTNERS` supported ones: both start at their own fitted sizes (the film
+:data:`~.policy.PAIR_PARTNERS` supported ones: both start at their own fitted sizes (the film
 half-lengths and the drag torque where the better one put them) and are re-fitted together.
 Before pairing, the first member is fitted on until its cost settles
 (:func:`settled_single`), since the pair's refit continues its coordinates. The pair is judged
@@ -20,6 +20,7 @@ import numpy as np
 
 from ..confidence import Z95_ONE_SIDED
 from .outcome import EffectOutcome
+from .policy import PAIR_PARTNERS, is_pair, pair_name
 from .trial import (
     Trial,
     difference_sd,
@@ -31,18 +32,15 @@ from .trial import (
     validated,
 )
 
-#: How many of the next supported candidates the best one is paired with.
-PAIR_PARTNERS = 2
-
 
 def pair_candidates(
     outcomes: list[EffectOutcome], seen: frozenset[str] = frozenset()
 ) -> list[tuple[EffectOutcome, EffectOutcome]]:
     """The pairs worth fitting: the first member is the single candidate of an effect the
     model-free tests found (``seen``; the least misfit of them), else the supported one with
-    the least misfit; its partners are the next :data:`PAIR_PARTNERS` supported ones."""
+    the least misfit; its partners are the next :data:`~.policy.PAIR_PARTNERS` supported ones."""
     singles = sorted(
-        (o for o in outcomes if not o.failure and "+" not in o.name), key=lambda o: o.chi2_with
+        (o for o in outcomes if not o.failure and not is_pair(o.name)), key=lambda o: o.chi2_with
     )
     found = [o for o in singles if o.name in seen]
     supported = [o for o in singles if o.supported]
@@ -74,11 +72,6 @@ def settled_single(
         settled, wall_time=single.wall_time, moves=moves(trial, z_base, z)
     )
     return settled, z
-
-
-def pair_name(first: EffectOutcome, second: EffectOutcome) -> str:
-    """The name of two effects fitted together, ``"<first>+<second>"``."""
-    return f"{first.name}+{second.name}"
 
 
 def pair_start(trial: Trial, second: str, z_first, z_second):
@@ -113,7 +106,7 @@ def try_pair(
     """The two effects fitted together from their single fits (``fitted``: name → fitted
     point; the fit or its start, whichever :func:`~rattlefit.diagnosis.trial.validated`
     chooses) and judged: the outcome (named ``"<first>+<second>"``) and its point."""
-    name = pair_name(first, second)
+    name = pair_name(first.name, second.name)
     z0 = pair_start(trial, second.name, fitted[first.name], fitted[second.name])
     points = np.stack([refit(trial, z0, trial.held(name)), z0])
     z_fit = points[validated(trial, points)[0]]

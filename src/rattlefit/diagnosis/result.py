@@ -13,13 +13,8 @@ from ..problem.options import unfinished_fit_advice
 from .cycle_gap import CycleGap
 from .evidence import Finding
 from .outcome import EffectOutcome
+from .policy import MISSED_Z, REFIT_WARN_RATIO, SIGNIFICANCE, Skipped, misses
 from .verdict import Evidence, Verdict, decide
-
-#: A band counts as missed when its standardised residual exceeds this (in σ).
-MISSED_Z = 3.0
-#: diagnose warns when re-fitting a and T_b without effects lowers the identification's cost
-#: below this share of it (the identification had not found the model's best fit).
-REFIT_WARN_RATIO = 0.5
 
 
 @dataclasses.dataclass(frozen=True)
@@ -38,12 +33,12 @@ class Diagnosis:
     #: the model-free tests of every recording (:func:`~rattlefit.diagnosis.evidence.findings`)
     findings: tuple[Finding, ...] = ()
     #: the family-wise level of the diagnosis (:attr:`DiagnoseOptions.significance`)
-    significance: float = 0.01
+    significance: float = SIGNIFICANCE
     #: χ² of the model without effects after the re-fit, on the fresh realisations of the
     #: effects' comparison (NaN: not measured; the identification's χ² is used instead)
     chi2_without: float = float("nan")
     #: effects not fitted to the band spectrum, and why
-    skipped: dict[str, str] = dataclasses.field(default_factory=dict)
+    skipped: dict[str, Skipped] = dataclasses.field(default_factory=dict)
     #: what a seeded result depends on (:func:`~rattlefit.reproducibility.platform_info`),
     #: captured when the diagnosis ran
     platform: dict = dataclasses.field(default_factory=dict, compare=False)
@@ -64,7 +59,7 @@ class Diagnosis:
 
     @property
     def missed_bands(self) -> list[dict]:
-        """Bands whose standardised residual exceeds :data:`MISSED_Z`: recording index,
+        """Bands whose standardised residual exceeds :data:`~.policy.MISSED_Z`: recording index,
         band edges (Hz) and residual (positive: the recording has more power)."""
         out = []
         for k, row in enumerate(np.asarray(self.residuals)):
@@ -87,7 +82,7 @@ class Diagnosis:
     def band_gap(self) -> bool:
         """The model without extra effects misses the band spectrum: its χ² (:attr:`gap_chi2`)
         has p below the significance."""
-        return bool(self.gap_chi2[2] < self.significance)
+        return misses(self.gap_chi2[2], self.significance)
 
     @property
     def evidence(self) -> Evidence:
@@ -116,7 +111,7 @@ class Diagnosis:
             "verdict_contradicted": list(v.contradicted),
             "significance": self.significance,
             "findings": [f.as_dict() for f in self.findings],
-            "skipped": dict(self.skipped),
+            "skipped": {k: str(v) for k, v in self.skipped.items()},
             "baseline": {
                 "chi2": self.baseline.statistics.chi2,
                 "dof": self.baseline.statistics.dof,
@@ -145,7 +140,7 @@ def baseline_warnings(
     converged: bool, cost_identified: float, cost_refit: float, options: dict
 ) -> list[str]:
     """Why a verdict against this identification may mislead: it stopped at its step limit,
-    or re-fitting a and T_b without effects lowered its cost below :data:`REFIT_WARN_RATIO`
+    or re-fitting a and T_b without effects lowered its cost below :data:`~.policy.REFIT_WARN_RATIO`
     of it. An effect tried against an unfinished identification can be credited with what
     finishing the fit of the model without effects would gain. ``options``: the
     identification's (:meth:`~rattlefit.problem.options.FitOptions.to_dict`), for the advice."""

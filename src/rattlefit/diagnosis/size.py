@@ -10,7 +10,7 @@ rise by the misfit per degree of freedom that remains where it exceeds one (as t
 does); the crossing is interpolated in the square root of the rise.
 
 The profile also holds the size's absent end and its *relevance floor*,
-:data:`RELEVANT_SHARE` of the effect's typical size (``Effect.typical``, a physical
+:data:`~.policy.RELEVANT_SHARE` of the effect's typical size (``Effect.typical``, a physical
 reference): an effect whose interval reaches below the floor cannot be told from no effect
 by the band spectrum, whatever share of the gap its fit closed (:func:`relevant`), and a
 diagnosis does not name it.
@@ -25,19 +25,17 @@ import numpy as np
 
 from ..inference.profile import polish_profile, profile_interval, profile_threshold
 from ..physics.effects import effect_class
+from .policy import RELEVANT_SHARE, effects_of
 from .trial import Trial, chi2s, difference_sd, field_key, refit_steps, residual_rows
 
 #: Where the size is profiled: decades off its fitted value (clipped to its range); close
 #: in, since a size the band spectrum pins can be pinned to a few per cent.
 SIZE_DECADES = (-1.0, -0.5, -0.2, -0.07, 0.07, 0.2, 0.5, 1.0)
-#: An effect named from the band spectrum must have the lower end of its size's 95 %
-#: interval at least this share of its typical size (``Effect.typical``).
-RELEVANT_SHARE = 0.05
 
 
 def relevance_floor(effect: str) -> float:
     """The smallest size of ``effect``'s first field worth naming (SI):
-    :data:`RELEVANT_SHARE` of its typical size, or 0 when it declares none."""
+    :data:`~.policy.RELEVANT_SHARE` of its typical size, or 0 when it declares none."""
     typical = effect_class(effect).typical
     return 0.0 if typical is None else RELEVANT_SHARE * typical[0]
 
@@ -96,7 +94,7 @@ def size_intervals(trial: Trial, name: str, z_fit, chi2_fit: float) -> dict[str,
     joined by ``+``): key (:func:`~rattlefit.diagnosis.trial.field_key`) →
     (estimate, lower, upper)."""
     out = {}
-    for effect in name.split("+"):
+    for effect in effects_of(name):
         i = trial.candidates[effect][0]
         floor = relevance_floor(effect)
         out[field_key(trial, name, i)] = size_interval(trial, name, i, z_fit, chi2_fit, floor)
@@ -107,7 +105,7 @@ def relevant(intervals: dict[str, tuple[float, float]], name: str, trial: Trial)
     """Every sized field of ``name`` (one effect, or two joined by ``+``) has the lower end of
     its interval (``intervals``, key → (lower, upper) as :func:`size_intervals` keys them) at
     or above its effect's :func:`relevance_floor`."""
-    for effect in name.split("+"):
+    for effect in effects_of(name):
         key = field_key(trial, name, trial.candidates[effect][0])
         if key in intervals and intervals[key][0] < relevance_floor(effect):
             return False

@@ -27,6 +27,7 @@ from ..problem.forward import evaluate
 from ..problem.parameters import Z_END, ParameterSpec
 from ..problem.problem import Problem
 from .outcome import EffectOutcome, gap_closed
+from .policy import effects_of, is_pair
 
 #: One-sided 95 % quantile of the standard normal (the χ² drop's Monte Carlo allowance).
 #: The re-fit without effects stops once two iterations lower its cost by less than this
@@ -79,7 +80,7 @@ class Trial:
 
     def fields(self, name: str) -> list[int]:
         """Coordinates of effect ``name``, or of every effect of ``"<effect>+<effect>"``."""
-        return [i for n in name.split("+") for i in self.candidates[n]]
+        return [i for n in effects_of(name) for i in self.candidates[n]]
 
     def held(self, name: str | None = None, *, nuisances: bool = True) -> list[int]:
         """Coordinates held fixed in a fit of effect ``name`` (None: of no effect; ``"a+b"``:
@@ -254,7 +255,7 @@ def field_key(trial: Trial, name: str, i: int) -> str:
     """The key of coordinate ``i`` in effect ``name``'s values: its field (``"amplitude"``),
     or, for two effects together, ``"<effect>.<field>"``."""
     spec_name = trial.problem.specs[i].name
-    return spec_name if "+" in name else spec_name.split(".", 1)[1]
+    return spec_name if is_pair(name) else spec_name.split(".", 1)[1]
 
 
 def effect_values(trial: Trial, name: str, z) -> dict[str, float]:

@@ -10,10 +10,11 @@ The rules: the effects that significant model-free tests point to are named, unl
 one to the band spectrum worsens the misfit beyond the Monte Carlo noise (:func:`contradicted`);
 a band candidate
 is named when it is *nameable* (:func:`nameable`), closes the band gap (it leaves a misfit
-consistent with noise or removes at least :data:`CLOSES_MOST` of the excess) and no candidate
-of another mechanism also leaves a misfit consistent with noise, or one as small within the
-Monte Carlo noise of a χ² difference (:func:`rivals`): a gap that several physics close alike
-is a model-form difference as likely as any of them.
+consistent with noise or removes at least :data:`~.policy.CLOSES_MOST` of the excess) and no
+candidate of another mechanism also leaves a misfit consistent with noise, or one as small
+within the Monte Carlo noise of a χ² difference (:func:`rivals`): a gap that several physics
+close alike is a model-form difference as likely as any of them. The thresholds are
+:mod:`rattlefit.diagnosis.policy`'s.
 """
 
 from __future__ import annotations
@@ -22,14 +23,9 @@ import dataclasses
 from collections.abc import Sequence
 
 from ..physics.effects import mechanism_of
-from .evidence import FOUND_ONLY, Finding
+from .evidence import Finding
 from .outcome import EffectOutcome
-
-#: A supported candidate that removes at least this share of the excess band misfit
-#: (``gap_closed``) explains the band gap even when what it leaves is still significant: the
-#: diagnosis re-fits only a, T_b and the effect's size, with the other parameters held where
-#: the identification put them without the effect, so a right effect can leave a remainder.
-CLOSES_MOST = 0.9
+from .policy import CLOSES_MOST, FOUND_ONLY, is_pair, pair_name
 
 
 @dataclasses.dataclass(frozen=True)
@@ -83,7 +79,7 @@ class Verdict:
     @property
     def label(self) -> str:
         """``"none"``, ``"unexplained"`` or the effects joined by ``+``."""
-        return "+".join(self.effects) if self.effects else self.kind
+        return pair_name(*self.effects) if self.effects else self.kind
 
     @property
     def band_gap_explained(self) -> bool:
@@ -115,7 +111,7 @@ def seen_in_bands(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> froz
     fitted = {
         o.name
         for o in outcomes
-        if not o.failure and "+" not in o.name and not contradicted(o.name, outcomes)
+        if not o.failure and not is_pair(o.name) and not contradicted(o.name, outcomes)
     }
     return evidence.seen & fitted
 
@@ -123,7 +119,7 @@ def seen_in_bands(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> froz
 def nameable(o: EffectOutcome, outcomes: Sequence[EffectOutcome], evidence: Evidence) -> bool:
     """``o`` could be named: supported; of a relevant size (``o.relevant``: its interval, once
     profiled, stays above its relevance floor); for an effect with a model-free test
-    (:data:`~rattlefit.diagnosis.evidence.FOUND_ONLY`), found by that test too; holding every
+    (:data:`~.policy.FOUND_ONLY`), found by that test too; holding every
     effect of :func:`seen_in_bands` (another effect is named beside a seen one only when the
     two together close clearly more than the seen one alone); two effects together only when
     they close clearly more than the better alone (``beyond_single``)."""
@@ -143,7 +139,7 @@ def within_noise(o: EffectOutcome, outcomes: Sequence[EffectOutcome], evidence: 
 
 def closing(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> EffectOutcome | None:
     """The band candidate that closes the band gap best: nameable, leaving a misfit
-    consistent with noise or removing at least :data:`CLOSES_MOST` of the excess; the least
+    consistent with noise or removing at least :data:`~.policy.CLOSES_MOST` of the excess; the least
     misfit first; None when there is no band gap or no candidate closes it."""
     if not evidence.band_gap:
         return None

@@ -341,7 +341,17 @@ class Effect(eqx.Module):
     interval reaches a share of it (:data:`rattlefit.diagnosis.size.RELEVANT_SHARE`), and
     None leaves the size unreferenced. ``tried_by_default`` (default True) False keeps the
     effect out of a diagnosis' default candidates (it is tried on request).
-    :mod:`rattlefit.physics.effects` holds the catalogue.
+
+    What a recording shows of the effect without any model: ``evidence``, the family of the
+    model-free test that finds it (:mod:`rattlefit.diagnosis.evidence`: ``"runout"``,
+    ``"mesh_order"``, ``"tooth"``, ``"drift"``, ``"drive_order"``; None: no such test);
+    ``encoder_visible`` (default False), True for an effect the encoders see directly (a
+    kinematic error or a drive ripple), which is named only when its test finds it and left
+    out of the diagnosis' program when not; ``named_only_when_found`` (default False), True
+    for another effect named only when its test finds it; ``relevant_size`` (m), the smallest
+    flank pattern worth naming as a gap error on the pitch circle (None: no floor).
+    :mod:`rattlefit.diagnosis.policy` reads these. :mod:`rattlefit.physics.effects` holds the
+    catalogue.
     """
 
     name: ClassVar[str] = "effect"
@@ -350,6 +360,10 @@ class Effect(eqx.Module):
     shape_fields: ClassVar[tuple[str, ...]] = ()
     typical: ClassVar[tuple[float, str] | None] = None
     tried_by_default: ClassVar[bool] = True
+    evidence: ClassVar[str | None] = None
+    encoder_visible: ClassVar[bool] = False
+    named_only_when_found: ClassVar[bool] = False
+    relevant_size: ClassVar[float | None] = None
     states: ClassVar[int] = 0
     state_units: ClassVar[tuple[str, ...]] = ()
 

@@ -7,7 +7,7 @@ import base64
 from html import escape
 from pathlib import Path
 
-from ..diagnosis.result import MISSED_Z
+from ..diagnosis.policy import MISSED_Z
 from ..io.recording import Recording
 from ..problem.options import unfinished_fit_advice
 from ..util import atomic_write

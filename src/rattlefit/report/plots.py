@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..diagnosis.result import MISSED_Z, Diagnosis
+from ..diagnosis.policy import MISSED_Z
+from ..diagnosis.result import Diagnosis
 from ..features.orders import (
     contact_events,
     flank_regression,

@@ -6,12 +6,13 @@ from __future__ import annotations
 import numpy as np
 
 from ..confidence import CHI2_1_95, Z95_ONE_SIDED
-from ..diagnosis.result import MISSED_Z, Diagnosis
+from ..diagnosis.policy import MISSED_Z
+from ..diagnosis.result import Diagnosis
 from ..inference.posterior import Posterior
 from ..inference.result import FitResult, below_optimum, identified_ratio
 from ..quantities import DRAG_TORQUE, FILM, MOMENTUM, TARGETS, VISCOSITY_SCALE, base_name, display
 from .explain import below_optimum_sentence
-from .wording import finding_size, search_sentence, verdict_sentence
+from .wording import finding_size, search_sentence, skipped_sentence, verdict_sentence
 
 #: The parameters the table shows first: the films, the drag torque, the viscosity and the
 #: squeeze momenta; the nuisances follow in a block of their own.
@@ -261,7 +262,9 @@ def format_diagnosis(diag: Diagnosis) -> str:
     table.insert(1, "  ".join("-" * w for w in widths))
     lines += ["", *table, ""]
     lines += [f"failed: {o.name} ({o.failure})" for o in diag.outcomes if o.failure]
-    lines += [f"not fitted: {name} ({why})" for name, why in diag.skipped.items()]
+    lines += [
+        f"not fitted: {name} ({skipped_sentence(name, why)})" for name, why in diag.skipped.items()
+    ]
     lines += [f"warning: {w}" for w in diag.warnings]
     lines.append(f"seed {diag.seed}; {diag.wall_time:.0f} s")
     return "\n".join(lines)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from ..diagnosis.evidence import Finding
 from ..diagnosis.outcome import EffectOutcome
+from ..diagnosis.policy import Skipped
 from ..diagnosis.result import Diagnosis
 from ..features.orders import AngleTest
 from ..inference.least_squares import LM_REJECTIONS
@@ -170,6 +171,19 @@ def verdict_sentence(diag: Diagnosis) -> str:
     if v.band_gap and v.explaining is None:
         sentence += f"; the band misfit ({fit_words(diag)}) remains unexplained"
     return sentence + contradicted_words(diag) + "."
+
+
+def skipped_sentence(effect: str, reason: str) -> str:
+    """Why ``effect`` was not fitted to the band spectrum, in words, from its
+    :class:`~rattlefit.diagnosis.policy.Skipped` ``reason`` (or that reason's JSON value)."""
+    reason = Skipped(reason)
+    if reason is Skipped.NOT_SEEN:
+        return "the encoders show no sign of it"
+    if reason is Skipped.NOT_FOUND:
+        if effect_class(effect).evidence == "drift":
+            return "the recording shows no drift (its trend test finds none)"
+        return "its model-free test finds no sign of it"
+    return "the model without effects fits the band spectrum within its noise"
 
 
 def diagnosis_document(diag: Diagnosis) -> dict:

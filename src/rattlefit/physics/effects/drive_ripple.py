@@ -23,6 +23,8 @@ class DriveRipple(Effect):
     """
 
     name: ClassVar[str] = "drive_ripple"
+    evidence: ClassVar[str | None] = "drive_order"
+    encoder_visible: ClassVar[bool] = True
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {"amplitude": ("rad/s²", 1e-2, 3e4)}
     typical: ClassVar[tuple[float, str]] = (
         1e3,

@@ -23,6 +23,9 @@ class Runout(Effect):
     """
 
     name: ClassVar[str] = "runout"
+    evidence: ClassVar[str | None] = "runout"
+    encoder_visible: ClassVar[bool] = True
+    relevant_size: ClassVar[float | None] = 2e-6
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {
         "driving_amplitude": ("m", 1e-12, 1e-4),
         "driven_amplitude": ("m", 1e-12, 1e-4),

@@ -33,6 +33,9 @@ class ToothDefect(Effect):
     """
 
     name: ClassVar[str] = "tooth_defect"
+    evidence: ClassVar[str | None] = "tooth"
+    encoder_visible: ClassVar[bool] = True
+    relevant_size: ClassVar[float | None] = 2e-6
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {"depth": ("m", 1e-12, 3e-5)}
     typical: ClassVar[tuple[float, str]] = (
         1e-5,

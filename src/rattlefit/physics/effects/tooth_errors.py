@@ -20,6 +20,9 @@ class ToothErrors(Effect):
     """
 
     name: ClassVar[str] = "tooth_errors"
+    evidence: ClassVar[str | None] = "mesh_order"
+    encoder_visible: ClassVar[bool] = True
+    relevant_size: ClassVar[float | None] = 1e-6
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {"amplitude": ("m", 1e-13, 3e-5)}
     typical: ClassVar[tuple[float, str]] = (
         5e-6,

@@ -21,6 +21,8 @@ class ViscosityDrift(Effect):
     """
 
     name: ClassVar[str] = "viscosity_drift"
+    evidence: ClassVar[str | None] = "drift"
+    named_only_when_found: ClassVar[bool] = True
     ranges: ClassVar[dict[str, tuple[str, float, float]]] = {"rate": ("1/s", 1e-6, 1.0)}
     typical: ClassVar[tuple[float, str]] = (
         1e-2,
