@@ -5,6 +5,7 @@ import dataclasses
 import json
 import math
 import subprocess
+from html import escape
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -13,6 +14,7 @@ import pytest
 
 from rattlefit import FitOptions, FitResult
 from rattlefit.documents import DIAGNOSIS, FIT, POSTERIOR
+from rattlefit.inference.fit_document import fit_of
 from rattlefit.inference.outcome import SearchEnd, SearchOutcome
 from rattlefit.inference.profile import profile_threshold
 from rattlefit.inference.result import (
@@ -24,6 +26,7 @@ from rattlefit.inference.result import (
     Statistics,
 )
 from rattlefit.report import format_table
+from rattlefit.report.explain import parameter_rows
 
 
 def _result(
@@ -313,6 +316,12 @@ def test_reports_of_the_bundled_recordings(bundled_fits, tmp_path):
         html = html_report(fit=fit, recordings=[rec])
         page = _check_self_contained(html)
         _check_parameters(page, fit)
+        # the terminal's table and the HTML's show every parameter's row alike
+        table = format_table(fit_of(fit)).splitlines()
+        for r in parameter_rows(fit["parameters"]):
+            line = next(row for row in table if row.split()[:1] == [r.name])
+            assert r.estimate in line and r.interval in line and line.endswith(r.status), line
+            assert f'<td class="status">{escape(r.status)}</td>' in html
         # spectrum, time history and profiles; the recording's summary as info prints it
         assert len(page.images) == 3
         text = " ".join(page.text)

@@ -15,11 +15,10 @@ from . import figures
 from .explain import (
     below_optimum_sentence,
     display_unit,
-    estimate_cells,
     explain,
     meaning,
+    parameter_rows,
     shown,
-    verdict_word,
 )
 from .inputs import (
     check,
@@ -121,9 +120,9 @@ def _parameter_section(fit: dict, lubrications: list[str]) -> str:
         "<th>status</th><th>how well the data pin it down</th></tr>"
     )
     rows = []
-    for name, p in fit["parameters"].items():
-        est, interval = estimate_cells(name, p)
-        cls = "identified" if p["identified"] else "unidentified"
+    for r in parameter_rows(fit["parameters"]):
+        name, p = r.name, fit["parameters"][r.name]
+        cls = "identified" if r.identified else "unidentified"
         data = " ".join(f'data-{k}="{p[k]!r}"' for k in ("lower", "upper") if p.get(k) is not None)
         if p.get("estimate") is not None:
             data += f' data-estimate="{p["estimate"]!r}"'
@@ -131,9 +130,9 @@ def _parameter_section(fit: dict, lubrications: list[str]) -> str:
         rows.append(
             f'<tr class="{cls}" data-param="{escape(name)}" {data}>'
             f'<td><b>{escape(name)}</b><br><span class="meta">{escape(what)}</span></td>'
-            f'<td class="num">{escape(est)}</td><td class="num">{escape(interval)}</td>'
-            f"<td>{escape(display_unit(name, p['unit']))}</td>"
-            f'<td class="status">{escape(verdict_word(p))}</td>'
+            f'<td class="num">{escape(r.estimate)}</td><td class="num">{escape(r.interval)}</td>'
+            f"<td>{escape(r.unit)}</td>"
+            f'<td class="status">{escape(r.status)}</td>'
             f"<td>{escape(explain(name, p, lubrications))}</td></tr>"
         )
     per = f.get("chi2_per_recording") or []

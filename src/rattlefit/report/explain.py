@@ -3,9 +3,23 @@ HTML report's parameter table; and the numbers as the table shows them."""
 
 from __future__ import annotations
 
+import dataclasses
+
 from ..inference.advice import film_lubrication
-from ..inference.result import IDENTIFIED_RATIO, identified_ratio
-from ..quantities import DRAG_TORQUE, FILM, VISCOSITY, base_name, display, quantity
+from ..inference.result import identified_ratio
+from ..quantities import (
+    DRAG_TORQUE,
+    FILM,
+    MOMENTUM,
+    TARGETS,
+    VISCOSITY,
+    base_name,
+    display,
+    quantity,
+)
+
+#: The physical parameters (the others are nuisances), by base name.
+PHYSICAL = (*TARGETS, MOMENTUM)
 
 
 def meaning(name: str) -> str:
@@ -52,18 +66,51 @@ def estimate_cells(name: str, p: dict) -> tuple[str, str]:
     return estimate, f"[{shown(p['lower'], name, unit)}, {shown(p['upper'], name, unit)}]"
 
 
-def verdict_word(p: dict) -> str:
-    """One or two words for the table's status column."""
+def verdict_word(name: str, p: dict) -> str:
+    """The status of parameter ``name``'s entry ``p`` of the fit JSON, as every table shows
+    it: ``identified``, ``as measured`` (a prior the data keep as narrow as identified),
+    ``lower bound only``, ``upper bound only``, ``interval too wide (×w > ×r)``, ``prior-dominated``
+    or ``not pinned down``."""
     if p["identified"]:
         return "identified"
-    if p["bound"] == "prior" and p["upper"] <= IDENTIFIED_RATIO * p["lower"]:
+    ratio = identified_ratio(name)
+    if p["bound"] == "prior" and p["upper"] <= ratio * p["lower"]:
         return "as measured"
+    if p["bound"] == "interval":
+        return f"interval too wide (×{p['upper'] / p['lower']:.2f} > ×{ratio:.3g})"
     return {
         "lower": "lower bound only",
         "upper": "upper bound only",
-        "interval": "too wide",
         "prior": "prior-dominated",
     }.get(p["bound"], "not pinned down")
+
+
+@dataclasses.dataclass(frozen=True)
+class ParameterRow:
+    """One parameter as every table shows it (the terminal's, the HTML report's): its name,
+    estimate and 95 % interval in display units (:func:`estimate_cells`), display unit,
+    status (:func:`verdict_word`), whether identified and whether a physical parameter (the
+    films, the drag torque, the viscosity, a squeeze-film group) or a nuisance."""
+
+    name: str
+    estimate: str
+    interval: str
+    unit: str
+    status: str
+    identified: bool
+    physical: bool
+
+
+def parameter_rows(parameters: dict[str, dict]) -> list[ParameterRow]:
+    """The rows of the fit JSON's ``parameters``, the physical parameters first."""
+    rows = []
+    for name, p in parameters.items():
+        estimate, interval = estimate_cells(name, p)
+        physical = base_name(name) in PHYSICAL
+        unit = display_unit(name, p["unit"])
+        status = verdict_word(name, p)
+        rows.append(ParameterRow(name, estimate, interval, unit, status, p["identified"], physical))
+    return sorted(rows, key=lambda r: not r.physical)
 
 
 def _why_one_sided(base: str, lub: str | None, bound: str) -> str:

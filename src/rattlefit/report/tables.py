@@ -9,56 +9,36 @@ from ..confidence import CHI2_1_95, Z95_ONE_SIDED
 from ..diagnosis.policy import MISSED_Z
 from ..diagnosis.result import Diagnosis
 from ..inference.posterior import Posterior
-from ..inference.result import FitResult, below_optimum, identified_ratio
-from ..quantities import DRAG_TORQUE, FILM, MOMENTUM, TARGETS, VISCOSITY_SCALE, base_name, display
-from .explain import below_optimum_sentence
+from ..inference.result import FitResult, below_optimum
+from ..quantities import DRAG_TORQUE, FILM, VISCOSITY_SCALE, display
+from .explain import below_optimum_sentence, parameter_rows
 from .wording import finding_size, search_sentence, skipped_sentence, verdict_sentence
+
 
 #: The parameters the table shows first: the films, the drag torque, the viscosity and the
 #: squeeze momenta; the nuisances follow in a block of their own.
-PHYSICAL = (*TARGETS, MOMENTUM)
-
-
-def is_physical(name: str) -> bool:
-    """Whether ``name`` is one of the :data:`PHYSICAL` parameters (an indexed film too)."""
-    return base_name(name) in PHYSICAL
-
-
-def format_table(result: FitResult) -> str:
-    """The parameters as a readable table (estimate, 95 % interval, unit, identified): the
-    physical parameters first, then the nuisances."""
-    rows = [("parameter", "estimate", "95 % interval", "unit", "identified")]
-    advice = []
-    names = sorted(result.estimates.parameters, key=lambda n: not is_physical(n))
-    for k, name in enumerate(names):
-        p = result.estimates.parameters[name]
-        if k and not is_physical(name) and is_physical(names[k - 1]):
+def parameter_lines(parameters: dict[str, dict]) -> list[str]:
+    """The fit JSON's ``parameters`` as text columns (:func:`~rattlefit.report.explain.
+    parameter_rows`, as the HTML report shows them): the physical parameters, then the
+    nuisances."""
+    rows = [("parameter", "estimate", "95 % interval", "unit", "status")]
+    shown = parameter_rows(parameters)
+    for k, r in enumerate(shown):
+        if k and not r.physical and shown[k - 1].physical:
             rows.append(("nuisances:", "", "", "", ""))
-        mult, unit = display(name, p.unit)
-        est = f"{p.estimate * mult:.4g}"
-        ci = f"[{p.lower * mult:.4g}, {p.upper * mult:.4g}]"
-        if p.identified:
-            ident = "yes"
-        elif p.bound == "lower":
-            ci, ident = f"≥ {p.lower * mult:.4g}", "no: lower bound only"
-        elif p.bound == "upper":
-            ci, ident = f"≤ {p.upper * mult:.4g}", "no: upper bound only"
-        elif p.bound == "interval":
-            ratio = identified_ratio(name)
-            ident = f"no: interval too wide (×{p.upper / p.lower:.2f} > ×{ratio:.3g})"
-        elif p.bound == "prior" and p.upper / p.lower <= identified_ratio(name):
-            ident = "as measured (its prior)"
-        elif p.bound == "prior":
-            ident = "no: prior-dominated"
-        else:
-            ident = "no"
-        rows.append((name, est, ci, unit, ident))
-        if p.would_pin:
-            advice.append(f"to pin {name}: {p.would_pin}")
+        rows.append((r.name, r.estimate, r.interval, r.unit, r.status))
     widths = [max(len(r[i]) for r in rows) for i in range(5)]
     lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
-    lines = [line.rstrip() for line in lines]
+    return [line.rstrip() for line in lines]
+
+
+def format_table(result: FitResult) -> str:
+    """The parameters as a readable table (:func:`parameter_lines`), the fit's statistics and
+    notes, and what extra data would pin each parameter not identified."""
+    parameters = result.estimates.parameters
+    lines = parameter_lines({k: v.as_dict() for k, v in parameters.items()})
+    advice = [f"to pin {n}: {p.would_pin}" for n, p in parameters.items() if p.would_pin]
     st, pr = result.statistics, result.provenance
     per = ""
     if len(st.chi2_recordings) > 1:
