@@ -17,6 +17,7 @@ from rattlefit.documents import FIT
 from rattlefit.errors import RattlefitError
 from rattlefit.inference.fit_document import read_fit
 from rattlefit.io.recording import OperatingPoint
+from rattlefit.problem.parameters import ParameterSpec
 from rattlefit.report import diagnosis_document
 
 #: A cheap fit of a short recording: the property is the document's, not the fit's.
@@ -108,3 +109,30 @@ def test_diagnose_and_sample_refuse_a_saved_fit_of_other_recordings_in_one_line(
         lines = [x for x in result.output.splitlines() if x.startswith("rattlefit: error")]
         assert result.exit_code == 2 and len(lines) == 1, result.output
         assert "fit/recordings/0" in lines[0] and "is not the recording fitted there" in lines[0]
+
+
+def test_a_parameter_added_through_the_options_alone_is_fitted_and_read_back(fitted, tmp_path):
+    # a factor on the drag torque with a prior, given as FitOptions.extra_parameters and
+    # nothing else: the model sees the product, the data cannot tell the factor from T_b (its
+    # interval is its prior's), and the saved fit reads back with it
+    rec, _, _ = fitted
+    factor = ParameterSpec(
+        "drag_factor", "1", 0.5, 2.0, center=1.0, log_sd=0.1, scales="drag_torque"
+    )
+    options = rf.FitOptions.quick(**CHEAP, extra_parameters=(factor,))
+    result = rf.identify([rec], options)
+    est = result.estimates.parameters
+    assert result.estimates.names[-1] == "drag_factor"
+    assert est["drag_factor"].bound == "prior" and not est["drag_factor"].identified
+    assert est["drag_factor"].lower < 1.0 < est["drag_factor"].upper
+    drag = result.estimates.map_params[0]["drag_torque"]
+    assert drag == pytest.approx(est["drag_torque"].estimate * est["drag_factor"].estimate)
+    path = tmp_path / "fit.json"
+    path.write_text(json.dumps(result.to_json()))
+    back = read_fit(path, [rec])
+    assert back.state.options.extra_parameters == (factor,)
+    assert back.estimates.parameters["drag_factor"] == est["drag_factor"]
+    with pytest.raises(RattlefitError, match=r"extra_parameters\[0\]: 'drag_torque' is a"):
+        rf.FitOptions(extra_parameters=(ParameterSpec("drag_torque", "N m", 1e-3, 1.0),))
+    with pytest.raises(RattlefitError, match="must declare the model field it scales"):
+        rf.FitOptions(extra_parameters=(ParameterSpec("x", "1", 0.5, 2.0),))

@@ -213,6 +213,9 @@ class FitOptions:
         starts); reported in the result. Default 0.
     priors : parameter name → replacement :class:`~rattlefit.problem.parameters.ParameterSpec`
         (e.g. from ``--prior min_film=2e-6:0.1``). Default none.
+    extra_parameters : more parameters to fit, each a
+        :class:`~rattlefit.problem.parameters.ParameterSpec` that declares the model field it
+        multiplies (``scales``), appended to the fit's vector. Default none.
     """
 
     n_realisations: int = 6
@@ -254,10 +257,12 @@ class FitOptions:
     learning_refinements: int = 2
     reuse_likelihood: str | None = None
     priors: dict = dataclasses.field(default_factory=dict)
+    extra_parameters: tuple = ()
 
     def __post_init__(self):
         object.__setattr__(self, "seed", int(self.seed))
         object.__setattr__(self, "priors", dict(self.priors or {}))
+        object.__setattr__(self, "extra_parameters", tuple(self.extra_parameters or ()))
         for check_concern in (
             check_ensemble,
             check_noise,
@@ -268,6 +273,18 @@ class FitOptions:
         ):
             check_concern(self)
         self._check_priors()
+        self._check_extra_parameters()
+
+    def _check_extra_parameters(self) -> None:
+        known = {s.name for s in default_specs([], {})} | {VISCOSITY}
+        for k, spec in enumerate(self.extra_parameters):
+            where = f"FitOptions.extra_parameters[{k}]"
+            check(isinstance(spec, ParameterSpec), f"{where}: expected a ParameterSpec")
+            check(spec.name not in known, f"{where}: {spec.name!r} is a parameter already")
+            check(
+                spec.scales is not None and spec.role in ("physical", "nuisance"),
+                f"{where}: {spec.name!r} must declare the model field it scales",
+            )
 
     def _check_priors(self) -> None:
         known = {s.name for s in default_specs([], {})} | {VISCOSITY}  # but the backlashes
@@ -305,6 +322,7 @@ class FitOptions:
         """Every option by its name, in the fields' order, priors as dicts."""
         out = {name: getattr(self, name) for name in OPTION_NAMES}
         out["priors"] = {k: dataclasses.asdict(v) for k, v in self.priors.items()}
+        out["extra_parameters"] = [dataclasses.asdict(v) for v in self.extra_parameters]
         return out
 
     @classmethod
@@ -313,8 +331,9 @@ class FitOptions:
         naming an unknown option."""
         doc = dict(doc)
         priors = {k: ParameterSpec(**v) for k, v in doc.pop("priors", {}).items()}
+        extra = tuple(ParameterSpec(**v) for v in doc.pop("extra_parameters", ()))
         check_known(doc)
-        return cls(priors=priors, **doc)
+        return cls(priors=priors, extra_parameters=extra, **doc)
 
 
 def preset_of(options: dict) -> str:

@@ -337,7 +337,11 @@ def build_problem(
         if options.features == "bands+folded":
             f = np.concatenate([f, rig.folded(n)])
         data.append(f)
-    specs = default_specs(rigs, options.priors)
+    specs = (
+        ParameterSpace(default_specs(rigs, options.priors))
+        .extended(*options.extra_parameters)
+        .specs
+    )
     unused = sorted(set(options.priors) - {s.name for s in specs} - {VISCOSITY})
     if unused:  # e.g. "a" in a fit across lubrications, or a backlash beyond the files
         raise RattlefitError(
