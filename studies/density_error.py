@@ -30,10 +30,10 @@ from common import provenance, write_result
 from sbc import POINTS, learned_at, prior_draw, problem_at
 
 import rattlefit as rf
+from rattlefit.inference.smooth import fit_learned
 from rattlefit.likelihood import LearningOptions
 from rattlefit.likelihood.check import check_point
 from rattlefit.likelihood.design import simulate_design, unit_of_z
-from rattlefit.likelihood.estimate import fit_learned
 from rattlefit.likelihood.learn import best_points
 
 

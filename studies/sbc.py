@@ -31,10 +31,10 @@ from scipy import stats
 
 import rattlefit as rf
 from rattlefit.inference.posterior import LogPosterior, run_chain
+from rattlefit.inference.smooth import fit_learned
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.likelihood import LearningOptions, learn_likelihood
 from rattlefit.likelihood.design import EDGE, simulate_design, unit_of_z, z_of_unit
-from rattlefit.likelihood.estimate import fit_learned
 from rattlefit.likelihood.learn import best_points
 from rattlefit.likelihood.store import Learned, read_learned, test_point_key, write_learned
 from rattlefit.physics.model import squeeze_momentum

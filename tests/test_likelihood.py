@@ -30,11 +30,11 @@ from rattlefit.inference.design import (
 from rattlefit.inference.fit_document import read_fit
 from rattlefit.inference.group import flanks
 from rattlefit.inference.posterior import LogPosterior
+from rattlefit.inference.smooth import CHI2_95, fit_learned
 from rattlefit.io.recording import read_truth
 from rattlefit.likelihood import DensityOptions, LearnedLikelihood, fit_density
 from rattlefit.likelihood.check import FAR_RECORDING
 from rattlefit.likelihood.design import prior_box, sobol_design, z_of_unit
-from rattlefit.likelihood.estimate import CHI2_95, fit_learned
 from rattlefit.likelihood.learn import best_points
 from rattlefit.likelihood.protocol import Likelihood
 from rattlefit.likelihood.store import Learned, read_learned, write_learned

@@ -3,7 +3,7 @@
 The stages: the problem (:func:`~rattlefit.problem.problem.problem_from`, for its
 recordings, parameters and simulator); the likelihood learned in rounds
 (:func:`~rattlefit.likelihood.learn_likelihood`); the optimum, every parameter's profile and
-the Laplace covariance on it (:func:`~rattlefit.likelihood.estimate.fit_learned`); the
+the Laplace covariance on it (:func:`~rattlefit.inference.smooth.fit_learned`); the
 learned likelihood checked against fresh simulations at the optimum and at the drag torque's
 and each film's interval ends (:mod:`rattlefit.likelihood.check`); the
 :class:`~rattlefit.inference.result.FitResult`.
@@ -22,7 +22,6 @@ from ..errors import RattlefitError
 from ..io.recording import Recording
 from ..likelihood import LearningOptions, learn_likelihood
 from ..likelihood.check import FAR_RECORDING, check_points
-from ..likelihood.estimate import CHI2_95, LearnedFit, LogMomentum, fit_learned, profile_derived
 from ..likelihood.learn import best_points
 from ..likelihood.store import Learned, read_learned, test_point_key
 from ..problem.options import FitOptions
@@ -45,6 +44,7 @@ from .result import (
     spectra_of,
     with_groups,
 )
+from .smooth import CHI2_95, LearnedFit, LogMomentum, fit_learned, profile_derived
 
 #: Starts of the quasi-Newton search: the design points of least learned cost.
 LEARNED_STARTS = 8

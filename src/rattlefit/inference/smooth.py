@@ -1,5 +1,7 @@
-"""Estimates on the learned likelihood: the optimum, profile intervals and the Laplace
-covariance.
+"""Estimates on a smooth, deterministic likelihood: the optimum, profile intervals and the
+Laplace covariance (the synthetic likelihood's noisy cost has its own stack:
+:mod:`~rattlefit.inference.least_squares`, :mod:`~rattlefit.inference.laplace`,
+:mod:`~rattlefit.inference.profile`).
 
 The learned cost (:class:`~rattlefit.likelihood.model.LearnedLikelihood`) is smooth and
 deterministic and JAX differentiates it exactly, so the optimum is found by quasi-Newton
@@ -22,9 +24,9 @@ import optimistix as optx
 from scipy import stats
 
 from ..confidence import CHI2_1_95 as CHI2_95
+from ..likelihood.design import EDGE
+from ..likelihood.model import LearnedLikelihood, cost_hessian
 from ..physics.model import squeeze_momentum
-from .design import EDGE
-from .model import LearnedLikelihood, cost_hessian
 
 #: A profile point this far below the optimum's cost means the optimum was not the least:
 #: the fit starts again from it.
