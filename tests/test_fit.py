@@ -34,12 +34,12 @@ from rattlefit.inference.least_squares import (
 )
 from rattlefit.inference.profile import SCREEN_FACTOR, ProfileCosts
 from rattlefit.inference.result import IDENTIFIED_RATIO, estimate
-from rattlefit.inference.starts import START_POINTS, START_RANGES, starting_points
+from rattlefit.inference.starts import START_POINTS, starting_points
 from rattlefit.io.recording import OperatingPoint
 from rattlefit.likelihood.synthetic import noise_model
 from rattlefit.physics.oil import dynamic_viscosity
 from rattlefit.problem import forward
-from rattlefit.problem.parameters import ParameterSpec, parameter_prior
+from rattlefit.problem.parameters import DRAG_STARTS, FILM_STARTS, ParameterSpec, parameter_prior
 from rattlefit.problem.problem import build_problem
 from rattlefit.simulation.synthetic import PAPER_OIL, backlash_sweep
 
@@ -502,11 +502,12 @@ def test_a_fit_across_lubrications_gives_each_its_film_and_shares_the_oil(
         mu = shared_truth[name]["viscosity_Pa_s"]
         assert float(p.viscosity) == pytest.approx(mu, rel=0.01), name
     # each film half-length is a dimension of the starts: twice the starts of one, spread
-    # over both films' ranges (log-uniform over START_RANGES, the rest at the prior centres)
+    # over both films' ranges (log-uniform over their start ranges, the rest at the prior
+    # centres)
     starts = starting_points(problem, None, np.random.default_rng(START_SEED))
     assert starts.shape == (2 * START_POINTS, len(spec_names))
     for i in range(3):
-        lo, hi = START_RANGES[i == 2]
+        lo, hi = DRAG_STARTS if i == 2 else FILM_STARTS
         v = np.array([problem.specs[i].value(t) for t in starts[:, i]])
         assert lo <= v.min() < END_FACTOR * lo and hi / END_FACTOR < v.max() <= hi  # end to end
     assert np.all(starts[:, 3:] == starts[0, 3:])
@@ -604,7 +605,7 @@ def test_a_fit_across_lubrications_starts_where_each_lubrications_own_search_end
 def test_a_second_set_of_starts_spreads_the_nuisances_over_their_priors(mild_recording):
     # the first set as without it, with the nuisances at their prior medians; then as many
     # again, with each parameter that has a prior spread over its median × exp(±1 log_sd), end
-    # to end and on both sides of the median, and (a, T_b) over their START_RANGES
+    # to end and on both sides of the median, and (a, T_b) over their start ranges
     problem = _problem([mild_recording[0]])
     rng_flat, rng = np.random.default_rng(START_SEED), np.random.default_rng(START_SEED)
     flat = starting_points(problem, None, rng_flat)
@@ -617,7 +618,7 @@ def test_a_second_set_of_starts_spreads_the_nuisances_over_their_priors(mild_rec
     for i, spec in enumerate(problem.specs):
         v = np.array([spec.value(t) for t in second[:, i]])
         if spec.log_sd is None:
-            lo, hi = START_RANGES[spec.name == "drag_torque"]
+            lo, hi = DRAG_STARTS if spec.name == "drag_torque" else FILM_STARTS
         else:
             lo, hi = spec.center * np.exp(-spec.log_sd), spec.center * np.exp(spec.log_sd)
             flat_v = np.array([spec.value(t) for t in flat[:, i]])

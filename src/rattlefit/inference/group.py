@@ -65,6 +65,7 @@ def group_spec(problem: Problem, film: str) -> ParameterSpec:
         float(squeeze_momentum(a.upper, mu, h_c, radius, width)),
         fd_log_step=GROUP_FD_LOG_STEP,
         role="group",
+        dither=a.dither,
     )
 
 

@@ -13,10 +13,7 @@ from scipy.stats import qmc
 
 from ..problem.parameters import ParameterSpec
 from ..problem.problem import Problem
-from ..quantities import DRAG_TORQUE
 
-#: Where the starting points of (a, T_b) are spread (log-uniformly), m and N m.
-START_RANGES = ((5e-6, 2e-3), (5e-3, 0.2))  # (each film half-length, drag torque)
 #: Starting points for (a, T_b) when ``FitOptions.n_starts`` is None; twice as many for
 #: each further film half-length (a fit across lubrications).
 START_POINTS = 64
@@ -36,7 +33,8 @@ def starting_points(
     """The fit's starting points (N, P), from seeded scrambled Sobol' sequences.
 
     First ``n_starts`` with each film half-length and the drag torque spread log-uniformly over
-    :data:`START_RANGES` and the other parameters at their prior medians; None gives
+    their :attr:`~rattlefit.problem.parameters.ParameterSpec.start_range` and the other
+    parameters at their prior medians; None gives
     :data:`START_POINTS` for (a, T_b), twice as many for each further film half-length (a fit
     across lubrications). Then ``nuisance_starts`` more (None: as many again) spread the same
     way, with each parameter that has a prior spread too, over its median × exp(±
@@ -46,9 +44,9 @@ def starting_points(
     """
     specs = problem.specs
     spread = [
-        (i, START_RANGES[s.name == DRAG_TORQUE])
+        (i, s.start_range or (s.lower, s.upper))
         for i, s in enumerate(specs)
-        if s.name in problem.space.of_role("physical")
+        if s.role == "physical"
     ]
     n = n_starts or START_POINTS * 2 ** (len(spread) - 2)
     starts = sobol_points(specs, spread, n, rng)

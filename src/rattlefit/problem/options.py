@@ -148,7 +148,7 @@ class FitOptions:
     **The search**: seeded starts, then Levenberg–Marquardt from the best.
 
     n_starts : starting points over the film half-lengths and the drag torque (a scrambled
-        Sobol' sequence in log over :data:`~rattlefit.inference.starts.START_RANGES`); None:
+        Sobol' sequence in log over each one's ``ParameterSpec.start_range``); None:
         :data:`~rattlefit.inference.starts.START_POINTS`, twice as many per further film.
     start_realisations : realisations per start in the screening; the best starts are then
         re-evaluated with all of them. Default 2.

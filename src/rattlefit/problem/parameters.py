@@ -63,7 +63,10 @@ class ParameterSpec:
     physical. ``scales`` names the :class:`~rattlefit.physics.model.RattleParams` field the
     parameter multiplies, for a factor (``viscosity_scale`` scales ``viscosity``); how the
     others reach the model is :meth:`~rattlefit.problem.space.ParameterSpace.rattle_params`.
-    ``unit`` is SI, the registry's (:mod:`rattlefit.quantities`) for a name it knows. Raises
+    ``unit`` is SI, the registry's (:mod:`rattlefit.quantities`) for a name it knows.
+    ``start_range`` (lower, upper) is where the fit's starts spread a physical parameter
+    (log-uniformly; None: its whole range); ``dither`` is the weight of the realisations'
+    log-offsets of it (``FitOptions.dither`` × this × N(0, 1); None: not dithered). Raises
     :class:`~rattlefit.errors.RattlefitError` for an empty range, an unknown role, a unit the
     registry contradicts or an unknown ``scales``.
     """
@@ -77,8 +80,12 @@ class ParameterSpec:
     fd_log_step: float = 0.15
     role: str = ""
     scales: str | None = None
+    start_range: tuple[float, float] | None = None
+    dither: float | None = None
 
     def __post_init__(self):
+        if self.start_range is not None:
+            object.__setattr__(self, "start_range", tuple(map(float, self.start_range)))
         if not (0 < self.lower < self.upper):
             raise RattlefitError(f"parameter {self.name}: need 0 < lower < upper")
         known = QUANTITIES.get(base_name(self.name))
@@ -147,6 +154,11 @@ def films_of(rigs: Sequence[RigSetup]) -> tuple[str, ...]:
     return film_names([rig.recording.operating.lubrication for rig in rigs])
 
 
+#: Where the fit's starts spread each film half-length and the drag torque (m, N m).
+FILM_STARTS = (5e-6, 2e-3)
+DRAG_STARTS = (5e-3, 0.2)
+
+
 def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec, ...]:
     """The fitted parameters with their prior ranges (SI units); ``priors`` replaces by name.
 
@@ -155,10 +167,19 @@ def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec
     shared.
     """
     films = films_of(rigs) or (FILM,)
-    physical = {"fd_log_step": 0.2, "role": "physical"}
+    film = {"fd_log_step": 0.2, "role": "physical", "start_range": FILM_STARTS, "dither": 1.0}
     specs = [
-        *(ParameterSpec(n, "m", 1e-6, 5e-3, **physical) for n in dict.fromkeys(films)),
-        ParameterSpec(DRAG_TORQUE, "N m", 2e-3, 0.5, fd_log_step=0.15, role="physical"),
+        *(ParameterSpec(n, "m", 1e-6, 5e-3, **film) for n in dict.fromkeys(films)),
+        ParameterSpec(
+            DRAG_TORQUE,
+            "N m",
+            2e-3,
+            0.5,
+            fd_log_step=0.15,
+            role="physical",
+            start_range=DRAG_STARTS,
+            dither=1.0,
+        ),
         ParameterSpec(
             VISCOSITY_SCALE,
             "1",
@@ -168,6 +189,7 @@ def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec
             log_sd=0.25,
             fd_log_step=0.15,
             scales=VISCOSITY,
+            dither=0.5,
         ),
         ParameterSpec(
             STIFFNESS_SCALE,
@@ -199,7 +221,17 @@ def default_specs(rigs: Sequence[RigSetup], priors: dict) -> tuple[ParameterSpec
         )
     if VISCOSITY in priors and rigs:
         priors = {**priors, VISCOSITY_SCALE: viscosity_prior(priors[VISCOSITY], rigs[0])}
-    return tuple(priors.get(s.name, s) for s in specs)
+    return tuple(with_defaults(priors[s.name], s) if s.name in priors else s for s in specs)
+
+
+def with_defaults(spec: ParameterSpec, default: ParameterSpec) -> ParameterSpec:
+    """``spec`` (a prior given by the user) with ``default``'s start range and dither where
+    it leaves them unset."""
+    return dataclasses.replace(
+        spec,
+        start_range=spec.start_range or default.start_range,
+        dither=default.dither if spec.dither is None else spec.dither,
+    )
 
 
 #: The nuisance parameters: the recording-independent parameters of :func:`default_specs`

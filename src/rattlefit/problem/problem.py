@@ -33,7 +33,7 @@ from ..physics.model import (
     film_for_squeeze_momentum,
     share_stiffness_tables,
 )
-from ..quantities import DRAG_TORQUE, MIN_FILM, VISCOSITY_SCALE
+from ..quantities import MIN_FILM, VISCOSITY_SCALE
 from ..rig import RigSetup, setup
 from ..simulation.solve import (
     absolute_tolerances,
@@ -350,7 +350,7 @@ def build_problem(
         )
     n_dither = max(m, options.n_noise_realisations, options.n_covariance_realisations)
     films = films_of(rigs)
-    dither, encoder_phase = dither_draws(specs, films, n_dither, options.dither, rng)
+    dither, encoder_phase = dither_draws(specs, n_dither, options.dither, rng)
     static = tuple(
         sorted(
             static_options(
@@ -389,17 +389,12 @@ def build_problem(
     return problem, rigs
 
 
-def dither_draws(specs, films, n: int, dither: float, rng) -> tuple[np.ndarray, np.ndarray]:
-    """Each of ``n`` realisations' log-offsets of the parameters, (n, P) — ``dither`` × N(0, 1)
-    for the films (or their squeeze-film groups, whose column dithers the film) and the drag
-    torque, half that for the viscosity, none for the nuisances — and its encoder count phases,
-    (n, 2), uniform in [0, 1)."""
-    weight = {
-        **dict.fromkeys([*films, *map(momentum_name, films)], 1.0),
-        DRAG_TORQUE: 1.0,
-        VISCOSITY_SCALE: 0.5,
-    }
-    scale = np.array([weight.get(sp.name, 0.0) for sp in specs])
+def dither_draws(specs, n: int, dither: float, rng) -> tuple[np.ndarray, np.ndarray]:
+    """Each of ``n`` realisations' log-offsets of the parameters, (n, P) — ``dither`` × each
+    spec's own weight (:attr:`~rattlefit.problem.parameters.ParameterSpec.dither`: the films
+    and the drag torque 1, the viscosity half that, the nuisances none) × N(0, 1) — and its
+    encoder count phases, (n, 2), uniform in [0, 1)."""
+    scale = np.array([sp.dither or 0.0 for sp in specs])
     offsets = rng.normal(size=(n, len(specs))) * scale * dither
     return offsets, rng.uniform(size=(n, 2))
 
@@ -410,7 +405,7 @@ def redrawn(problem: Problem, dither: float, rng, n: int | None = None) -> Probl
     realisations (default: as many as it has): an independent set of realisation settings
     (with fresh release states, an independent set of realisations)."""
     n = problem.dither.shape[0] if n is None else n
-    dither, phases = dither_draws(problem.specs, problem.films, n, dither, rng)
+    dither, phases = dither_draws(problem.specs, n, dither, rng)
     return eqx.tree_at(
         lambda q: (q.dither, q.encoder_phase), problem, (jnp.asarray(dither), jnp.asarray(phases))
     )
