@@ -20,7 +20,7 @@ from rattlefit.cli import main
 from rattlefit.diagnosis import policy
 from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
 from rattlefit.diagnosis.outcome import EffectOutcome, gap_closed
-from rattlefit.diagnosis.result import Diagnosis, baseline_warnings
+from rattlefit.diagnosis.result import Caveat, Diagnosis, baseline_caveats
 from rattlefit.diagnosis.screening import (
     FREE_FACTORS,
     SCREEN_DECADES,
@@ -36,6 +36,7 @@ from rattlefit.physics import effects as fx
 from rattlefit.problem.parameters import Z_END
 from rattlefit.problem.problem import build_problem
 from rattlefit.report import verdict_sentence
+from rattlefit.report.wording import caveat_sentence, diagnosis_caveats
 
 #: The effects offered in the CI tests: the withheld one and two that could mimic it in the
 #: band spectrum (a gap error at the mesh order, a gap error per revolution), which the
@@ -102,9 +103,9 @@ def test_diagnose_names_withheld_flank_friction_and_sizes_it(tmp_path):
     assert friction["gap_closed"] > MIN_GAP_CLOSED
     assert friction["chi2_with"] < friction["chi2_without"] - friction["noise_threshold"]
     # an identification that stopped at its step limit is said to have done so, on screen too
-    stopped = any("step limit" in w for w in doc["warnings"])
+    stopped = "unfinished_identification" in doc["warnings"]
     assert stopped == (not doc["baseline"]["converged"]), doc["warnings"]
-    assert all(f"warning: {w}" in result.output for w in doc["warnings"])
+    assert all(f"warning: {w}" in result.output for w in diagnosis_caveats(doc))
     # the friction also shows in the drive cycle, which the model without it is not fitted
     # to: the statistics it misses are listed, and drawn
     cycle = doc["drive_cycle"]
@@ -204,17 +205,21 @@ def test_baseline_refit_starts_from_the_identification_and_the_free_alternatives
         np.testing.assert_array_equal(row[2:], z[2:])  # the nuisances stay
 
 
-def test_baseline_warnings_flag_an_unconverged_or_far_identification():
+def test_baseline_caveats_flag_an_unconverged_or_far_identification():
     quick, full = rf.FitOptions.quick().to_dict(), rf.FitOptions().to_dict()
-    assert baseline_warnings(True, 100.0, 60.0, quick) == []
-    (w,) = baseline_warnings(False, 100.0, 90.0, quick)
+    assert baseline_caveats(True, 100.0, 60.0) == ()
+    (c,) = baseline_caveats(False, 100.0, 90.0)
+    assert c is Caveat.UNFINISHED
+    refit = {"cost_identified": 100.0, "cost": 90.0}
+    w = caveat_sentence(c, refit, quick)
     assert "step limit" in w and "without --quick" in w
     # worded for what was run: a full fit is not told to run without --quick
-    (w,) = baseline_warnings(False, 100.0, 90.0, full)
+    w = caveat_sentence(c, refit, full)
     assert "--quick" not in w and f"all {full['max_iterations']} iterations" in w
-    (w,) = baseline_warnings(True, 1440.0, 300.0, full)
-    assert "1440.0" in w and "300.0" in w
-    assert len(baseline_warnings(False, 1440.0, 300.0, full)) == 2
+    (c,) = baseline_caveats(True, 1440.0, 300.0)
+    w = caveat_sentence(c, {"cost_identified": 1440.0, "cost": 300.0}, full)
+    assert c is Caveat.FAR_FROM_BEST and "1440.0" in w and "300.0" in w
+    assert len(baseline_caveats(False, 1440.0, 300.0)) == 2
 
 
 def test_gap_closed_is_the_share_of_the_excess_misfit():

@@ -13,7 +13,7 @@ starts from an identification (:func:`~rattlefit.inference.identify.identify`) a
    effect is not credited with what that re-fit alone gains, nor with what a plausible
    shift of the mesh stiffness, h_min or the viscosity explains; when the re-fit lowers
    the identification's cost by more than half, or the identification stopped at its step
-   limit, the diagnosis warns (:func:`~rattlefit.diagnosis.result.baseline_warnings`);
+   limit, the diagnosis warns (:func:`~rattlefit.diagnosis.result.baseline_caveats`);
 3. **tries each effect** of :mod:`rattlefit.physics.effects` on its own: added to the model
    at its absent end, its fields screened over their ranges
    (:func:`~rattlefit.diagnosis.screening.screen`), then fitted together with ``a``
@@ -87,7 +87,7 @@ from .policy import (
     misses,
     pair_name,
 )
-from .result import Diagnosis, baseline_warnings
+from .result import Diagnosis, baseline_caveats
 from .screening import distinct_rows, free_alternatives, screen
 from .size import relevant, size_intervals
 from .trial import (
@@ -487,12 +487,10 @@ def base_model(trial: Trial, baseline: FitResult, say):
     )
     z_base, cost_identified, refit_cost = refit_without_effects(trial, z_absent, say)
     chi2_without, _ = final_chi2(trial, z_base)
-    warnings = baseline_warnings(
-        baseline.statistics.success, cost_identified, refit_cost, baseline.state.options.to_dict()
-    )
-    for w in warnings:
-        say("  warning: " + w)
-    return z_base, chi2_without, (cost_identified, refit_cost), tuple(warnings)
+    caveats = baseline_caveats(baseline.statistics.success, cost_identified, refit_cost)
+    for c in caveats:
+        say(f"  caveat: {c.value.replace('_', ' ')}")
+    return z_base, chi2_without, (cost_identified, refit_cost), caveats
 
 
 def diagnose(

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import dataclasses
+import enum
 
 import numpy as np
 from scipy import stats
 
 from ..documents import DIAGNOSIS
 from ..inference.result import FitResult
-from ..problem.options import unfinished_fit_advice
 from .cycle_gap import CycleGap
 from .evidence import Finding
 from .outcome import EffectOutcome
@@ -29,7 +29,7 @@ class Diagnosis:
     seed: int
     wall_time: float
     refit_costs: tuple[float, float]  # cost at the identification, after the re-fit
-    warnings: tuple[str, ...] = ()
+    warnings: tuple[Caveat, ...] = ()
     #: the model-free tests of every recording (:func:`~rattlefit.diagnosis.evidence.findings`)
     findings: tuple[Finding, ...] = ()
     #: the family-wise level of the diagnosis (:attr:`DiagnoseOptions.significance`)
@@ -118,6 +118,7 @@ class Diagnosis:
                 "p_value": self.baseline.statistics.p_value,
                 "converged": self.baseline.statistics.success,
                 "likelihood": self.baseline.state.options.likelihood,
+                "options": self.baseline.state.options.to_dict(),
                 "parameters": {
                     k: p.as_dict() for k, p in self.baseline.estimates.parameters.items()
                 },
@@ -128,7 +129,7 @@ class Diagnosis:
             "drive_cycle": None if self.drive_cycle is None else self.drive_cycle.as_dict(),
             "effects": [o.as_dict() for o in self.outcomes],
             "refit": {"cost_identified": self.refit_costs[0], "cost": self.refit_costs[1]},
-            "warnings": list(self.warnings),
+            "warnings": [str(c) for c in self.warnings],
             "seed": self.seed,
             "platform": self.platform,  # seeded results depend on it
             "wall_time_s": self.wall_time,
@@ -136,26 +137,26 @@ class Diagnosis:
         }
 
 
-def baseline_warnings(
-    converged: bool, cost_identified: float, cost_refit: float, options: dict
-) -> list[str]:
-    """Why a verdict against this identification may mislead: it stopped at its step limit,
-    or re-fitting a and T_b without effects lowered its cost below :data:`~.policy.REFIT_WARN_RATIO`
-    of it. An effect tried against an unfinished identification can be credited with what
-    finishing the fit of the model without effects would gain. ``options``: the
-    identification's (:meth:`~rattlefit.problem.options.FitOptions.to_dict`), for the advice."""
+class Caveat(enum.StrEnum):
+    """Why a verdict against its identification may mislead (worded by
+    :func:`rattlefit.report.wording.caveat_sentence`)."""
+
+    #: the identification stopped at its step limit: the model without effects may fit better
+    #: than it does there, and an effect may be credited with that
+    UNFINISHED = "unfinished_identification"
+    #: re-fitting a and T_b without effects lowered the identification's cost below
+    #: :data:`~.policy.REFIT_WARN_RATIO` of it: the effects are judged against the re-fit
+    FAR_FROM_BEST = "far_from_best_fit"
+
+
+def baseline_caveats(
+    converged: bool, cost_identified: float, cost_refit: float
+) -> tuple[Caveat, ...]:
+    """The :class:`Caveat` s of an identification that ``converged`` or not, whose cost the
+    re-fit without effects took from ``cost_identified`` to ``cost_refit``."""
     out = []
     if not converged:
-        out.append(
-            "the identification stopped at its step limit, so the model without effects may "
-            "fit better than it does here and an effect may be credited with that; "
-            + unfinished_fit_advice(options)
-            + "."
-        )
+        out.append(Caveat.UNFINISHED)
     if cost_refit < REFIT_WARN_RATIO * cost_identified:
-        out.append(
-            f"the identification was far from the model's best fit: re-fitting a and T_b "
-            f"without effects lowered its cost from {cost_identified:.1f} to {cost_refit:.1f}"
-            "; the effects are judged against the re-fit."
-        )
-    return out
+        out.append(Caveat.FAR_FROM_BEST)
+    return tuple(out)

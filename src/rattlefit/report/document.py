@@ -29,7 +29,7 @@ from .inputs import (
 )
 from .summary import recording_summary, summary_rows
 from .tables import suggestion_note, suggestion_table
-from .wording import search_sentence
+from .wording import diagnosis_caveats, search_sentence
 
 CSS = """
 body { font-family: -apple-system, 'Segoe UI', Helvetica, Arial, sans-serif; color: #1d1d1f;
@@ -393,7 +393,7 @@ def _diagnosis_section(diag: dict | None, paths: list[str], recordings) -> str:
         )
     else:
         parts.append(f"<p>No band misses by more than {MISSED_Z:g} σ.</p>")
-    parts += [f'<p class="warn">{escape(w)}</p>' for w in diag.get("warnings", [])]
+    parts += [f'<p class="warn">{escape(w)}</p>' for w in diagnosis_caveats(diag)]
     names = [_name(p) for p in paths]
     if len(diag["residuals"]) == len(names):
         parts.append(_img(figures.residuals(diag, names, MISSED_Z), "band residuals"))

@@ -12,7 +12,13 @@ from ..inference.posterior import Posterior
 from ..inference.result import FitResult, below_optimum
 from ..quantities import DRAG_TORQUE, FILM, VISCOSITY_SCALE, display
 from .explain import below_optimum_sentence, parameter_rows
-from .wording import finding_size, search_sentence, skipped_sentence, verdict_sentence
+from .wording import (
+    diagnosis_caveats,
+    finding_size,
+    search_sentence,
+    skipped_sentence,
+    verdict_sentence,
+)
 
 
 #: The parameters the table shows first: the films, the drag torque, the viscosity and the
@@ -245,7 +251,7 @@ def format_diagnosis(diag: Diagnosis) -> str:
     lines += [
         f"not fitted: {name} ({skipped_sentence(name, why)})" for name, why in diag.skipped.items()
     ]
-    lines += [f"warning: {w}" for w in diag.warnings]
+    lines += [f"warning: {w}" for w in diagnosis_caveats(diag.to_json())]
     lines.append(f"seed {diag.seed}; {diag.wall_time:.0f} s")
     return "\n".join(lines)
 

@@ -7,11 +7,12 @@ from __future__ import annotations
 from ..diagnosis.evidence import Finding
 from ..diagnosis.outcome import EffectOutcome
 from ..diagnosis.policy import Skipped
-from ..diagnosis.result import Diagnosis
+from ..diagnosis.result import Caveat, Diagnosis
 from ..features.orders import AngleTest
 from ..inference.least_squares import LM_REJECTIONS
 from ..inference.outcome import SearchOutcome
 from ..physics.effects import effect_class
+from ..problem.options import unfinished_fit_advice
 
 
 def finding_size(t: AngleTest) -> str:
@@ -171,6 +172,31 @@ def verdict_sentence(diag: Diagnosis) -> str:
     if v.band_gap and v.explaining is None:
         sentence += f"; the band misfit ({fit_words(diag)}) remains unexplained"
     return sentence + contradicted_words(diag) + "."
+
+
+def caveat_sentence(caveat: str, refit: dict, options: dict) -> str:
+    """A :class:`~rattlefit.diagnosis.result.Caveat` (or its JSON value) in words, with the
+    diagnosis document's ``refit`` costs and the identification's ``options``
+    (:meth:`~rattlefit.problem.options.FitOptions.to_dict`) for the advice."""
+    if Caveat(caveat) is Caveat.UNFINISHED:
+        return (
+            "the identification stopped at its step limit, so the model without effects may "
+            "fit better than it does here and an effect may be credited with that; "
+            + unfinished_fit_advice(options)
+            + "."
+        )
+    return (
+        "the identification was far from the model's best fit: re-fitting a and T_b "
+        f"without effects lowered its cost from {refit['cost_identified']:.1f} to "
+        f"{refit['cost']:.1f}; the effects are judged against the re-fit."
+    )
+
+
+def diagnosis_caveats(doc: dict) -> list[str]:
+    """Every caveat of a diagnosis document (:meth:`~rattlefit.diagnosis.result.Diagnosis.
+    to_json`) in words."""
+    options = doc["baseline"].get("options", {})
+    return [caveat_sentence(c, doc["refit"], options) for c in doc.get("warnings", [])]
 
 
 def skipped_sentence(effect: str, reason: str) -> str:
