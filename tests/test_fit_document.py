@@ -119,7 +119,7 @@ def test_a_parameter_added_through_the_options_alone_is_fitted_and_read_back(fit
     factor = ParameterSpec(
         "drag_factor", "1", 0.5, 2.0, center=1.0, log_sd=0.1, scales="drag_torque"
     )
-    options = rf.FitOptions.quick(**CHEAP, extra_parameters=(factor,))
+    options = rf.FitOptions.quick(**CHEAP, profile_group=False, extra_parameters=(factor,))
     result = rf.identify([rec], options)
     est = result.estimates.parameters
     assert result.estimates.names[-1] == "drag_factor"

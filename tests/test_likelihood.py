@@ -431,6 +431,7 @@ TINY = dict(
     learning_per_round=32,
     check_realisations=2,
     learning_refinements=0,
+    profile_group=False,  # the layout's property needs no squeeze-momentum profile
 )
 #: One identification on the learned likelihood, printed as JSON, in a process with N devices,
 #: on one core when told ("1") or on every core the test may use ("all").
