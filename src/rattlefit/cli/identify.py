@@ -128,12 +128,13 @@ def identify(
     text, doc = format_table(result), result.to_json()
     write_learned_beside(result, output, doc)
     if suggest:
-        from ..inference.design import DESIGN_REALISATIONS, plan_document
+        from ..inference.design import plan_document
         from ..inference.design import suggest as plan
+        from ..likelihood.information import SIMULATED_REALISATIONS
         from ..report import format_suggestions
 
         planned = plan(result, recordings, seed=seed, progress=progress_printer(quiet))
-        doc["suggest"] = plan_document(planned, seed=seed, realisations=DESIGN_REALISATIONS)
+        doc["suggest"] = plan_document(planned, seed=seed, realisations=SIMULATED_REALISATIONS)
         text += "\n\n" + format_suggestions(doc["suggest"])
     if report_file is not None or plot_dir is not None:
         doc["fit"]["igr"] = igr_document(result, recordings, seed)

@@ -41,10 +41,6 @@ from ..quantities import DRAG_TORQUE, FILM
 from ..simulation.synthetic import synthesize
 from .result import FitResult
 
-#: Realisations per point of the information estimate.
-DESIGN_REALISATIONS = SIMULATED_REALISATIONS
-#: Log step of the central differences.
-DESIGN_STEP = SIMULATED_STEP
 #: How much longer the "longer run" candidate is.
 LONGER = 10
 #: Centre-distance changes tried, mm.
@@ -84,8 +80,8 @@ def recording_information(
     values: dict[str, float],
     options: FitOptions,
     *,
-    n: int = DESIGN_REALISATIONS,
-    step: float = DESIGN_STEP,
+    n: int = SIMULATED_REALISATIONS,
+    step: float = SIMULATED_STEP,
     rng: np.random.Generator,
 ) -> tuple[list[str], np.ndarray]:
     """The Fisher information (P, P) of one recording like ``recording`` at the parameter
@@ -181,7 +177,7 @@ def suggest(
     fit: FitResult,
     recordings: Sequence[Recording],
     *,
-    n: int = DESIGN_REALISATIONS,
+    n: int = SIMULATED_REALISATIONS,
     seed: int = 0,
     progress: Callable[[str], None] | None = None,
 ) -> list[Planned]:

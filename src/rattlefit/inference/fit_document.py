@@ -100,9 +100,10 @@ def with_stored_likelihood(fit: FitResult, recordings: Sequence[Recording], file
     path = stored_likelihood_file(fit, file)
     if path is None:
         return fit
-    learned = read_learned(path, fit.problem_for(recordings))
-    learned = dataclasses.replace(learned, noise=fit.state.likelihood.noise)
-    return dataclasses.replace(fit, state=dataclasses.replace(fit.state, likelihood=learned))
+    problem = fit.problem_for(recordings)
+    learned = dataclasses.replace(read_learned(path, problem), noise=fit.state.likelihood.noise)
+    state = dataclasses.replace(fit.state, likelihood=learned, problem=problem)
+    return dataclasses.replace(fit, state=state)
 
 
 def fit_of(doc, file: str = "<fit>") -> FitResult:

@@ -23,7 +23,7 @@ from ..io.recording import Recording
 from ..likelihood import LearningOptions, learn_likelihood
 from ..likelihood.check import FAR_RECORDING, check_points
 from ..likelihood.learn import best_points
-from ..likelihood.store import Learned, read_learned, test_point_key
+from ..likelihood.store import Learned, learned_noise, read_learned, test_point_key
 from ..problem.options import FitOptions
 from ..problem.problem import Problem, problem_from
 from ..quantities import MIN_FILM, VISCOSITY_SCALE
@@ -152,7 +152,9 @@ def learned_result(
     )
     spectra = spectra_of(problem, mean, [np.sqrt(np.diag(c)) for c in total])
     provenance = provenance_of(rigs, options, wall, platform, likelihood=info)
-    learned = learned.at_optimum(z, options.n_realisations)
+    sims = int(learned.design.u.shape[0])
+    noise = learned_noise(total, options.n_realisations, np.asarray(chi2_rec), sims)
+    learned = dataclasses.replace(learned, noise=noise)
     problem = dataclasses.replace(problem, sigma=jnp.asarray(learned.noise.sigma))
     state = FittedState(options, z, cov, likelihood=learned, problem=problem)
     return FitResult(estimates, statistics, spectra, provenance, state)

@@ -113,7 +113,7 @@ class Learned:
     """A learned likelihood (a :class:`~rattlefit.likelihood.protocol.Likelihood`): the
     likelihood on the problem it was read for, its design (None: not stored with it, and it
     cannot be saved), test-point key, seed and flow options, and the noise model at a fit's
-    optimum (:meth:`at_optimum`; None before)."""
+    optimum (:func:`learned_noise`; None before)."""
 
     kind: ClassVar[str] = "learned"
     likelihood: LearnedLikelihood
@@ -145,13 +145,6 @@ class Learned:
             names,
             step=SMOOTH_STEP,
         )
-
-    def at_optimum(self, z, n_realisations: int) -> Learned:
-        """This likelihood with its noise model at ``z`` (:func:`learned_noise`)."""
-        total = np.asarray(self.likelihood.moments(jnp.asarray(z))[1])
-        chi2_rec, _ = self.likelihood.chi2_terms(jnp.asarray(z))
-        noise = learned_noise(total, n_realisations, np.asarray(chi2_rec), self.design.u.shape[0])
-        return dataclasses.replace(self, noise=noise)
 
     def save(self, g: h5py.Group) -> None:
         """Write the likelihood (:func:`write_group`) and any noise model into group ``g``.

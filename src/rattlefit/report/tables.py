@@ -13,7 +13,7 @@ from ..inference.result import FitResult, below_optimum
 from ..quantities import DRAG_TORQUE, FILM, VISCOSITY_SCALE, display
 from .explain import below_optimum_sentence, parameter_rows
 from .wording import (
-    diagnosis_caveats,
+    caveat_sentence,
     finding_size,
     search_sentence,
     skipped_sentence,
@@ -251,7 +251,9 @@ def format_diagnosis(diag: Diagnosis) -> str:
     lines += [
         f"not fitted: {name} ({skipped_sentence(name, why)})" for name, why in diag.skipped.items()
     ]
-    lines += [f"warning: {w}" for w in diagnosis_caveats(diag.to_json())]
+    refit = dict(zip(("cost_identified", "cost"), diag.refit_costs, strict=True))
+    options = diag.baseline.state.options.to_dict()
+    lines += [f"warning: {caveat_sentence(c, refit, options)}" for c in diag.warnings]
     lines.append(f"seed {diag.seed}; {diag.wall_time:.0f} s")
     return "\n".join(lines)
 
