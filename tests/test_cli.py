@@ -120,7 +120,28 @@ def test_simulate_refuses_unphysical_and_keeps_old_output(tmp_path):
     assert list(tmp_path.iterdir()) == [out]
 
 
-def test_identify_writes_json_and_plots(tmp_path):
+def check_suggestion(plan: dict, output: str) -> None:
+    """``--suggest``: information from one more recording adds to the fit's, so no candidate
+    may predict a wider interval than the fit alone for any parameter; the longer run of the
+    same test narrows what the data inform; the seed and realisations used are reported."""
+    assert "with one more recording" in output and "seed 0" in output
+    assert plan["seed"] == 0 and plan["realisations"] >= 2
+    now, *rest = plan["candidates"]
+    assert now["recording"] == "now" and len(rest) >= 6
+    inf = float("inf")
+    for row in rest:
+        for name, factor in now["factors"].items():
+            before = inf if factor is None else factor
+            after = inf if row["factors"][name] is None else row["factors"][name]
+            assert after <= before * (1 + 1e-9), (row["recording"], name, before, after)
+    longer = next(r for r in rest if "as long" in r["recording"])
+    bounded = [k for k, f in now["factors"].items() if f is not None]
+    assert any(longer["factors"][k] < now["factors"][k] * (1 - 1e-6) for k in bounded)
+    assert any("oil-jet companion" in r["recording"] for r in rest)
+
+
+def test_identify_writes_json_plots_and_a_suggestion(tmp_path):
+    # one quick fit (four starts) serves the JSON, the figures and --suggest
     out = tmp_path / "result.json"
     plots = tmp_path / "plots"
     path = DATA / "pairII_boundary_65.6_20pct_16Hz.h5"
@@ -139,6 +160,7 @@ def test_identify_writes_json_and_plots(tmp_path):
             str(plots),
             "--prior",
             "min_film=3um:0.1",
+            "--suggest",
         ],
     )
     assert result.exit_code == 0, result.output
@@ -159,6 +181,7 @@ def test_identify_writes_json_and_plots(tmp_path):
     assert "correlation.png" in pngs and any(x.startswith("fit_0_") for x in pngs)
     assert {"profiles.png", "igr.png"} <= set(pngs)  # every figure the report has
     assert not list(tmp_path.glob("**/*.tmp"))
+    check_suggestion(doc["suggest"], result.output)
     # this fit's profile figure: a cost axis from zero, the printed interval shaded
     from rattlefit.report.plots import profile_figure
 
@@ -300,32 +323,6 @@ def test_report_finds_recordings_beside_the_fit_and_writes_html(tmp_path):
     )
     assert result.exit_code == 2 and "gone.h5" in result.output
     assert not (tmp_path / "x.html").exists()
-
-
-def test_identify_suggest_adds_information_and_never_widens(tmp_path):
-    # information from one more recording adds to the fit's: no candidate may predict a
-    # wider interval than the fit alone for any parameter, the longer run of the same test
-    # narrows what the data inform, and the seed and realisations used are reported
-    out = tmp_path / "result.json"
-    path = DATA / "pairII_boundary_65.6_20pct_16Hz.h5"
-    args = ["identify", str(path), "--quick", "--starts", "4", "--suggest", "-q", "-o", str(out)]
-    result = CliRunner().invoke(main, args)
-    assert result.exit_code == 0, result.output
-    assert "with one more recording" in result.output and "seed 0" in result.output
-    plan = json.loads(out.read_text())["suggest"]
-    assert plan["seed"] == 0 and plan["realisations"] >= 2
-    now, *rest = plan["candidates"]
-    assert now["recording"] == "now" and len(rest) >= 6
-    inf = float("inf")
-    for row in rest:
-        for name, factor in now["factors"].items():
-            before = inf if factor is None else factor
-            after = inf if row["factors"][name] is None else row["factors"][name]
-            assert after <= before * (1 + 1e-9), (row["recording"], name, before, after)
-    longer = next(r for r in rest if "as long" in r["recording"])
-    bounded = [k for k, f in now["factors"].items() if f is not None]
-    assert any(longer["factors"][k] < now["factors"][k] * (1 - 1e-6) for k in bounded)
-    assert any("oil-jet companion" in r["recording"] for r in rest)
 
 
 def test_help_and_version_start_without_jax_or_scipy():
