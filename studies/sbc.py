@@ -199,14 +199,8 @@ def learned_at(problem, point: str, learning, seed, args):
             return stored.likelihood, stored.design, float("nan")
     like, design, rounds = learn_likelihood(problem, learning, seed=seed, progress=print)
     if path is not None:
-        write_learned(
-            path,
-            like,
-            design,
-            key=test_point_key(problem),
-            seed=args.seed,
-            options=learning.density,
-        )
+        kept = Learned(like, design, test_point_key(problem), args.seed, learning.density)
+        write_learned(path, kept)
     return like, design, rounds[0].per_second_per_core
 
 
