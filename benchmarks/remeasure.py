@@ -83,10 +83,10 @@ RECIPES: dict[str, tuple[str, float]] = {
         10,
     ),
     "diagnose_full_study.json": (
-        "python studies/diagnose_study.py --full --sets shared,clean,injected --quiet "
-        "--cases-dir studies/cache/diagnose_cases/{commit} "
+        "python studies/diagnose_study.py --full --sets shared,clean,injected --sample 10 "
+        "--sample-seed 0 --quiet --cases-dir studies/cache/diagnose_cases/{commit} "
         "--result studies/results/diagnose_full_study.json",
-        300,
+        60,
     ),
     "density_error.json": ("python studies/density_error.py --cases 20", 90),
     "own_data.json": ("python studies/own_data.py --seeds 0 1 2", 60),
