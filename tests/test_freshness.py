@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from scipy import stats
 
 ROOT = Path(__file__).resolve().parents[1]
 FORWARD = "python benchmarks/run.py --write-results --json benchmarks/results/raw/full.json"
@@ -144,3 +145,32 @@ def test_a_validation_set_is_scored_only_at_the_method_it_was_drawn_for(tmp_path
     assert f"drawn for the method of {first[:12]}" in problem and "src/" in problem
     manifest.write_text('{"seed": 1, "method_commit": "0123456789abcdef"}')
     assert "not in this history" in study.frozen_method_problem(tmp_path)
+
+
+def test_the_standing_diagnose_sample_is_half_clean_seeded_and_scored_with_exact_intervals():
+    study = _diagnose_study()
+    clean = [{"name": f"c{i}", "expected": ["none", "unexplained"]} for i in range(28)]
+    effect = [{"name": f"e{i}", "expected": ["runout"]} for i in range(23)]
+    cases = [c for pair in zip(clean, effect, strict=False) for c in pair] + clean[23:]
+    sample = study.sample_cases(cases, 10, 0)
+    names = [c["name"] for c in sample]
+    assert sum(map(study.is_clean, sample)) == 5 and len(set(names)) == 10
+    assert names == [c["name"] for c in cases if c["name"] in names]  # in the cases' order
+    assert sample == study.sample_cases(cases, 10, 0)
+    assert sample != study.sample_cases(cases, 10, 1)
+    # fewer clean cases than half the sample: all of them, the rest effect cases
+    few = study.sample_cases(clean[:2] + effect, 10, 0)
+    assert sum(map(study.is_clean, few)) == 2 and len(few) == 10
+    # Clopper–Pearson: closed forms at the ends, binomial tails of 2.5 % inside
+    assert study.rate_interval(0, 5)[1] == pytest.approx(1 - 0.025 ** (1 / 5), abs=1e-4)
+    assert study.rate_interval(5, 5)[0] == pytest.approx(0.025 ** (1 / 5), abs=1e-4)
+    lo, hi = study.rate_interval(2, 10)
+    assert stats.binom.cdf(2, 10, hi) == pytest.approx(0.025, abs=1e-3)
+    assert stats.binom.sf(1, 10, lo) == pytest.approx(0.025, abs=1e-3)
+    # every verdict right on five clean cases: the false-positive aim needs twenty
+    rows = [c | {"set": "s", "verdict": c["expected"][0], "right": True} for c in sample]
+    result = study.summary(rows)
+    assert (result["false_positives"], result["effect_right"]) == (0, 5)
+    verdict = study.study_verdict(result, 5, 5)
+    assert verdict.startswith("false positives missed (0 of 5 clean")
+    assert "effect cases met" in verdict
