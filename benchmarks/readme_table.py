@@ -131,15 +131,15 @@ def changed_between(old: str, new: str, paths, root: Path = ROOT) -> list[str]:
     return out.stdout.split()
 
 
-def headline(summary: str) -> str:
-    """The summary's first clause (up to a "; " or a sentence's ". " outside parentheses),
-    with "…" where more follows in the file."""
+def headline(summary: str, stops: tuple[str, ...] = ("; ", ". ")) -> str:
+    """The summary's first clause (up to a "; " or a sentence's ". " outside parentheses, or
+    another of ``stops``), with "…" where more follows in the file."""
     depth = 0
     for i, c in enumerate(summary):
         depth += (c in "([") - (c in ")]")
-        if depth == 0 and (
-            summary.startswith("; ", i)
-            or (summary.startswith(". ", i) and not summary[i - 1 : i].isdigit())
+        if depth == 0 and any(
+            summary.startswith(stop, i) and not (stop == ". " and summary[i - 1 : i].isdigit())
+            for stop in stops
         ):
             return summary[:i] + " …"
     return summary
@@ -150,7 +150,9 @@ def render(rows, link_prefix: str = "", with_state: bool = False) -> str:
     head = ["what", "latest result", "aim", "verdict"] + (["state"] if with_state else [])
     lines = ["| " + " | ".join([*head, "file"]) + " |", "|" + "---|" * (len(head) + 1)]
     for name, doc, st in rows:
-        row = [_cell(doc["what"]), _cell(headline(doc["summary"])), _cell(doc["aim"])]
+        # the README names what was measured up to its ": " (the full text in the file)
+        what = doc["what"] if with_state else headline(doc["what"], (": ",))
+        row = [_cell(what), _cell(headline(doc["summary"])), _cell(doc["aim"])]
         row.append(_cell(doc["verdict"]))
         if with_state:
             row.append(_cell(st))
