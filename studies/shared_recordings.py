@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import statistics
 import time
 from pathlib import Path
 
@@ -87,8 +88,18 @@ def main() -> None:
 def write(args, rows: list, devices: int) -> None:
     """Write the result file (atomically) from the recordings so far."""
     n_held, total = held(rows)
+    drag = [r["parameters"]["drag_torque"] for r in rows]
+    two_sided = [d["upper"] / d["lower"] for d in drag if d["lower"] > 0]
+    widths = (
+        f"; T_b two-sided in {len(two_sided)}, its median width ×{statistics.median(two_sided):.2f}"
+        if two_sided
+        else "; T_b one-sided in all"
+    )
     doc = {
-        "what": "the learned likelihood on the independent simulator's recordings without effects",
+        "headline": True,
+        "order": 7.5,
+        "what": "`identify --likelihood learned` on the independent simulator's clean 3 s "
+        "recordings: truth inside the 95 % intervals of `a`, `T_b` and μ",
         "command": "python studies/shared_recordings.py --seed "
         + str(args.seed)
         + (" " + " ".join(args.names) if args.names else ""),
@@ -96,7 +107,8 @@ def write(args, rows: list, devices: int) -> None:
         "date": time.strftime("%Y-%m-%d"),
         "platform": rf.platform_info(),
         "devices": devices,
-        "summary": f"{n_held}/{total} intervals hold their truth over {len(rows)} recordings",
+        "summary": f"{n_held}/{total} intervals hold their truth over {len(rows)} recordings"
+        + widths,
         "aim": "95 % intervals hold the truth (about 95 % of them)",
         "verdict": "met" if n_held >= 0.9 * total else "not met",
         "rows": rows,
