@@ -336,6 +336,7 @@ def result_document(
     n_clean = sum(is_clean(c) for c in cases)
     sampled = "" if population is None else f" (a seeded sample of the {population})"
     return {
+        "headline": True,
         "order": 11.6,
         "what": "full `diagnose` (default options) on recordings rattlefit's fitted model did "
         "not make: the shared independent recordings, the clean calibration set and the "
