@@ -83,7 +83,7 @@ RECIPES: dict[str, tuple[str, float]] = {
         10,
     ),
     "diagnose_full_study.json": (
-        "python studies/diagnose_study.py --full --sets shared,clean,injected --sample 10 "
+        "python studies/diagnose_study.py --full --sets shared,clean,injected --sample 20 "
         "--sample-seed 0 --quiet --cases-dir studies/cache/diagnose_cases/{commit} "
         "--result studies/results/diagnose_full_study.json",
         60,
