@@ -43,15 +43,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import shlex
 import subprocess
-import sys
 import time
 from collections import Counter
 from pathlib import Path
 
 import numpy as np
-from common import provenance, tree_state, write_result
+from common import provenance, write_result
 from scipy import stats
 
 import rattlefit as rf
@@ -323,15 +321,13 @@ def sample_cases(cases: list[dict], n: int, seed: int) -> list[dict]:
     return [c for i, c in enumerate(cases) if i in keep]
 
 
-def result_document(
-    rows: list[dict], cases: list[dict], *, command: str, population: int | None = None
-) -> dict:
+def result_document(rows: list[dict], cases: list[dict], *, population: int | None = None) -> dict:
     """The README result file (``studies/results/diagnose_full_study.json``) of a full
     study's ``rows`` out of the ``cases`` selected (a sample of ``population`` cases, when
-    given), written by ``command``, run on the checkout's code (its commit is the method's: to
-    score an older method, run the study in a worktree of its commit)."""
+    given), run by this process's command on the checkout's code (its commit is the method's:
+    to score an older method, run the study in a worktree of its commit)."""
     result = summary(rows)
-    tree = tree_state()
+    made = provenance()
     n_cases = len(cases)
     n_clean = sum(is_clean(c) for c in cases)
     sampled = "" if population is None else f" (a seeded sample of the {population})"
@@ -352,13 +348,11 @@ def result_document(
         + ", ".join(f"{k} {v['right']}/{v['cases']} right" for k, v in result["per_set"].items()),
         "aim": "≤ 5 % false positives on ≥ 20 clean recordings; ≥ 80 % of effect cases right",
         "verdict": study_verdict(result, n_clean, n_cases - n_clean),
-        "measured": f"{command} (one row a case, fit seed 0, family-wise level 0.01), on the "
-        f"diagnosis code of commit {tree['commit']}; a row's wall_s includes any time the "
-        "study was paused or ran at low priority",
-        "command": command,
+        "measured": f"{made['command']} (one row a case, fit seed 0, family-wise level 0.01), "
+        f"on the diagnosis code of commit {made['commit']}; a row's wall_s includes any time "
+        "the study was paused or ran at low priority",
         "results": {**result, "cases": [{k: r[k] for k in ROW_KEYS if k in r} for r in rows]},
-        "platform": rf.reproducibility.platform_info(),
-        **tree,
+        **made,
     }
 
 
@@ -444,9 +438,7 @@ def main() -> None:
     if args.result:
         if not args.full:
             ap.error("--result describes a full study: add --full")
-        command = "python " + " ".join(shlex.quote(a) for a in sys.argv)
-        doc = result_document(rows, selected, command=command, population=population)
-        write_result(args.result, doc)
+        write_result(args.result, result_document(rows, selected, population=population))
 
 
 if __name__ == "__main__":
