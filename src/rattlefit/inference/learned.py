@@ -29,6 +29,7 @@ from ..problem.problem import Problem, problem_from
 from ..quantities import MIN_FILM, VISCOSITY_SCALE
 from ..reproducibility import platform_info
 from ..util import stamped
+from .critical import CriticalValues, critical_values
 from .group import flanks, group_films, group_spec
 from .outcome import search_end
 from .result import (
@@ -83,15 +84,13 @@ def profiles_of(problem: Problem, fit: LearnedFit) -> dict[str, list[tuple[float
     }
 
 
-def momentum_estimates(
-    problem: Problem, learned: Learned, fit: LearnedFit, lubrications, say
-) -> tuple[dict[str, ParameterEstimate], dict[str, list[tuple[float, float]]]]:
-    """Each boundary film's squeeze momentum (N s; what a boundary recording pins), profiled
-    on the learned likelihood: its estimates and its profiles as ``(M, Δcost)`` pairs."""
-    found, profiles = {}, {}
+def momentum_quantities(problem: Problem, lubrications) -> dict[str, LogMomentum]:
+    """Each boundary film's squeeze momentum's log as a function of ``z``
+    (:class:`~rattlefit.inference.smooth.LogMomentum`), by the film's name."""
+    out = {}
     for film in group_films(problem, lubrications):
         mu, radius, width = flanks(problem, film)
-        g = LogMomentum(
+        out[film] = LogMomentum(
             problem.index(film),
             problem.index(VISCOSITY_SCALE),
             problem.index(MIN_FILM),
@@ -100,8 +99,21 @@ def momentum_estimates(
             width,
             problem.specs,
         )
+    return out
+
+
+def momentum_estimates(
+    problem: Problem, learned: Learned, fit: LearnedFit, quantities, thresholds, say
+) -> tuple[dict[str, ParameterEstimate], dict[str, list[tuple[float, float]]]]:
+    """Each boundary film's squeeze momentum (N s; what a boundary recording pins), profiled
+    on the learned likelihood, its interval cut at ``thresholds[film]`` (χ²₁'s 3.84 where
+    missing): its estimates and its profiles as ``(M, Δcost)`` pairs. ``quantities``:
+    :func:`momentum_quantities`."""
+    found, profiles = {}, {}
+    for film, g in quantities.items():
         say(f"profiling the squeeze momentum of {film} …")
-        prof = profile_derived(learned.likelihood, g, fit.optimum)
+        cut = thresholds.get(film, CHI2_95)
+        prof = profile_derived(learned.likelihood, g, fit.optimum, threshold=cut)
         spec = group_spec(problem, film)
         m = float(np.exp(g(jnp.asarray(fit.optimum.z))))
         ends = [spec.z_of(float(np.exp(v))) for v in (prof.lower, prof.upper)]
@@ -110,6 +122,34 @@ def momentum_estimates(
             (float(np.exp(v)), float(d)) for v, d in zip(prof.z, prof.delta, strict=True)
         ]
     return found, profiles
+
+
+def calibrated(problem: Problem, learned: Learned, fit: LearnedFit, quantities, options, seed, say):
+    """``fit`` with each profile cut at its critical value by simulation
+    (:mod:`~rattlefit.inference.critical`), and the critical values (None, and ``fit`` as it
+    is, when ``options.calibration_simulations`` is 0)."""
+    n = options.calibration_simulations
+    if not n:
+        return fit, None
+    say(f"critical values of the profiles from {n} recordings simulated near the optimum …")
+    like = learned.likelihood
+    critical = critical_values(problem, like, fit, n=n, seed=seed, derived=quantities)
+    names = critical_names(problem, critical)
+    say(
+        "  critical values (χ²₁: 3.84): "
+        + ", ".join(f"{names[k]} {v:.2f}" for k, v in critical.values.items())
+    )
+    cut = {i: critical.values[i] for i in fit.profiles}
+    return fit_learned(like, fit.optimum.z[None], list(fit.profiles), threshold=cut), critical
+
+
+def critical_names(problem: Problem, critical: CriticalValues) -> dict:
+    """The name in the fit's table of each quantity of ``critical`` (a parameter's index, or a
+    film whose squeeze momentum it is)."""
+    return {
+        k: problem.specs[k].name if isinstance(k, int) else group_spec(problem, k).name
+        for k in critical.values
+    }
 
 
 def learned_result(
@@ -123,8 +163,10 @@ def learned_result(
     wall: float,
     platform: dict,
     groups: tuple[dict, dict] = ({}, {}),
+    critical: CriticalValues | None = None,
 ) -> FitResult:
-    """The :class:`FitResult` of a fit on the learned likelihood."""
+    """The :class:`FitResult` of a fit on the learned likelihood, its intervals cut at the
+    ``critical`` values (χ²₁'s 3.84 when None)."""
     like = learned.likelihood
     z = fit.optimum.z
     cov = fit.covariance_z
@@ -140,7 +182,7 @@ def learned_result(
         names=[s.name for s in problem.specs],
         correlation=cov / np.outer(sd, sd),
         map_params=map_params_of(problem, z),
-        profile={"threshold": CHI2_95, "likelihood": "learned"},
+        profile=profile_record(problem, critical),
         profiles={**profiles_of(problem, fit), **groups[1]},
     )
     statistics = Statistics(
@@ -158,6 +200,17 @@ def learned_result(
     problem = dataclasses.replace(problem, sigma=jnp.asarray(learned.noise.sigma))
     state = FittedState(options, z, cov, likelihood=learned, problem=problem)
     return FitResult(estimates, statistics, spectra, provenance, state)
+
+
+def profile_record(problem: Problem, critical: CriticalValues | None) -> dict:
+    """The fit JSON's ``fit.profile``: χ²₁'s threshold and, when calibrated, each quantity's
+    critical value (``thresholds``, by name) and how it was set (``calibration``)."""
+    record = {"threshold": CHI2_95, "likelihood": "learned"}
+    if critical is not None:
+        names = critical_names(problem, critical)
+        record["thresholds"] = {names[k]: float(v) for k, v in critical.values.items()}
+        record["calibration"] = critical.as_dict(names)
+    return record
 
 
 def band_floor(problem: Problem, options: FitOptions) -> np.ndarray:
@@ -256,7 +309,7 @@ def identify_learned(
     platform = platform_info()
     problem, rigs, _ = problem_from(recordings, options)
     say(f"{len(rigs)} recording(s), {len(problem.specs)} parameters (seed {options.seed})")
-    s_learn, s_check, s_more = np.random.SeedSequence(options.seed).spawn(3)
+    s_learn, s_check, s_more, s_critical = np.random.SeedSequence(options.seed).spawn(4)
     s_more = iter(s_more.spawn(options.learning_refinements))
     learned, info = learn_or_reuse(problem, options, s_learn, say)
     fit, checks = fit_and_check(problem, learned, options, s_check, say)
@@ -277,9 +330,10 @@ def identify_learned(
         "check": [c.as_dict() for c in checks],
         "check_passed": all(c.passed for c in checks),
     }
-    groups = ({}, {})
-    if options.profile_group:
-        groups = momentum_estimates(problem, learned, fit, lubrications, say)
+    quantities = momentum_quantities(problem, lubrications) if options.profile_group else {}
+    fit, critical = calibrated(problem, learned, fit, quantities, options, s_critical, say)
+    thresholds = {} if critical is None else critical.values
+    groups = momentum_estimates(problem, learned, fit, quantities, thresholds, say)
     wall = time.perf_counter() - t_start
     say(f"done in {wall:.1f} s")
     return learned_result(
@@ -292,4 +346,5 @@ def identify_learned(
         wall=wall,
         platform=platform,
         groups=groups,
+        critical=critical,
     )

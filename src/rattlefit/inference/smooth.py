@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 
 import equinox as eqx
 import jax
@@ -269,16 +270,19 @@ def fit_learned(
     starts,
     profiled,
     *,
-    threshold: float = CHI2_95,
+    threshold: float | Mapping[int, float] = CHI2_95,
     max_restarts: int = 3,
 ) -> LearnedFit:
     """Minimise from ``starts`` (K, P in ``z``) and profile each parameter index in
-    ``profiled``; a profile point below the optimum's cost starts the search again there (at
-    most ``max_restarts`` times)."""
+    ``profiled``, its interval cut at ``threshold`` (one for all, or per index; an index
+    missing from the mapping gets χ²₁'s 3.84); a profile point below the optimum's cost
+    starts the search again there (at most ``max_restarts`` times)."""
+    cut = threshold if isinstance(threshold, Mapping) else {}
+    default = CHI2_95 if isinstance(threshold, Mapping) else threshold
     opt = optimum(like, starts)
     restarts = 0
     while True:
-        profiles = {i: profile(like, opt, i, threshold=threshold) for i in profiled}
+        profiles = {i: profile(like, opt, i, threshold=cut.get(i, default)) for i in profiled}
         lowest = min(
             ((float(p.delta.min()), p) for p in profiles.values()),
             key=lambda t: t[0],

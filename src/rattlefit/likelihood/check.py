@@ -64,6 +64,23 @@ class PointCheck:
         return {**dataclasses.asdict(self), "passed": self.passed}
 
 
+def simulations_with_floor(
+    problem: Problem,
+    like: LearnedLikelihood,
+    u,
+    recording: int,
+    seed: np.random.SeedSequence,
+) -> np.ndarray:
+    """Features (N, F) of recording ``recording``'s rig at design points ``u`` (N, P), one
+    simulation each (:func:`~rattlefit.likelihood.design.simulate_design`), with its
+    density's variance floor added as Gaussian noise: recordings as the learned likelihood
+    describes them."""
+    s_sim, s_noise = seed.spawn(2)
+    sims = simulate_design(problem, u, recording, s_sim)
+    floor = np.asarray(like.densities[recording].floor)
+    return sims + np.sqrt(floor) * np.random.default_rng(s_noise).normal(size=sims.shape)
+
+
 def check_point(
     problem: Problem,
     like: LearnedLikelihood,
@@ -76,12 +93,8 @@ def check_point(
     u = np.repeat(unit_of_z(np.asarray(z, float))[None], n, axis=0)
     out = []
     for r, child in enumerate(seed.spawn(problem.n_rec)):
-        s_sim, s_noise = child.spawn(2)
         density = like.densities[r]
-        sims = simulate_design(problem, u, r, s_sim)
-        sims = sims + np.sqrt(np.asarray(density.floor)) * np.random.default_rng(s_noise).normal(
-            size=sims.shape
-        )
+        sims = simulations_with_floor(problem, like, u, r, child)
         res = np.asarray(jax.vmap(density.residual)(jnp.asarray(sims), jnp.asarray(u)))
         z_rms = float(np.sqrt(np.mean(res**2)))
         mean_error = float(np.sqrt(max(np.mean(res.mean(axis=0) ** 2) - 1 / n, 0.0)))
