@@ -29,7 +29,7 @@ from .inputs import (
 )
 from .summary import recording_summary, summary_rows
 from .tables import suggestion_note, suggestion_table
-from .wording import diagnosis_caveats, search_sentence
+from .wording import diagnosis_caveats, profile_sentence, profile_thresholds, search_sentence
 
 CSS = """
 body { font-family: -apple-system, 'Segoe UI', Helvetica, Arial, sans-serif; color: #1d1d1f;
@@ -144,13 +144,8 @@ def _parameter_section(fit: dict, lubrications: list[str]) -> str:
         f"(p = {f['p_value']:.2g}); seed {f.get('seed')}; "
         f"{f.get('wall_time_s', 0.0):.0f} s.</p>"
     )
-    threshold = f.get("profile", {}).get("threshold")
-    if threshold is not None:
-        stats += (
-            f'<p class="meta">95 % intervals: where the profile cost is within '
-            f"{threshold:.1f} of the optimum's (χ²₁'s 3.84 plus an allowance for the Monte "
-            "Carlo noise and roughness of the cost).</p>"
-        )
+    if "threshold" in f.get("profile", {}):
+        stats += f'<p class="meta">{escape(profile_sentence(f["profile"]))}.</p>'
     notes = "".join(f'<p class="warn">{n}</p>' for n in _fit_notes(f))
     return (
         "<h2>Parameters</h2>"
@@ -200,7 +195,7 @@ def _spectra_section(fit: dict, recordings: list[Recording], paths: list[str]) -
         )
     curves = fit["fit"].get("profiles") or {}
     if curves:
-        threshold = fit["fit"].get("profile", {}).get("threshold")
+        threshold = profile_thresholds(fit["fit"].get("profile", {}))
         parts.append("<h2>Profiles</h2>")
         parts.append(
             "<p>Each free parameter held fixed in turn and the others re-fitted: the rise of "

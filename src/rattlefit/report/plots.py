@@ -24,6 +24,7 @@ from ..io.recording import Recording
 from ..quantities import axis_label, display
 from ..rig import setup
 from ..util import atomic_write
+from .wording import profile_thresholds
 
 
 def pyplot():
@@ -150,12 +151,12 @@ def plot_fit(
     est = result.estimates
     if est.profiles:
         rows = {k: p.as_dict() for k, p in est.parameters.items()}
-        fig = profile_figure(est.profiles, est.profile.get("threshold"), rows)
+        fig = profile_figure(est.profiles, profile_thresholds(est.profile), rows)
         out.append(_save(fig, directory / "profiles.png"))
     return out
 
 
-def profile_figure(curves: dict, threshold: float | None, parameters: dict):
+def profile_figure(curves: dict, threshold: float | dict | None, parameters: dict):
     """Each free parameter's profile against its value in display units: every point's cost
     above the lowest cost found (the optimum's, unless a profile point lies below it, which the
     panel then says), the estimate as a vertical line, the threshold that sets the 95 % interval
@@ -163,17 +164,23 @@ def profile_figure(curves: dict, threshold: float | None, parameters: dict):
     prints shaded (from the axis' edge where its lower end reads 0). The cost is drawn linear up
     to the threshold and logarithmic beyond; the value axis spans the points, the estimate and
     the interval's finite ends. ``curves`` is the fit JSON's ``fit.profiles``, ``parameters``
-    its ``parameters``."""
+    its ``parameters``; ``threshold`` one for every panel, or one per name
+    (:func:`~rattlefit.report.wording.profile_thresholds`)."""
     names = list(curves)
     fig, axes = pyplot().subplots(1, len(names), figsize=(4.2 * len(names), 3.4), squeeze=False)
     for ax, name in zip(axes[0], names, strict=True):
         profile_panel(ax, name, np.asarray(curves[name], dtype=float).reshape(-1, 2),
-                      threshold, parameters.get(name, {}))  # fmt: skip
+                      panel_threshold(threshold, name), parameters.get(name, {}))  # fmt: skip
     fig.suptitle("profiles (shaded: the 95 % interval the table prints)", fontsize=10)
     fig.tight_layout()
     handles, labels = axes[0, 0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=4, fontsize=8)
     return fig
+
+
+def panel_threshold(threshold: float | dict | None, name: str) -> float | None:
+    """The threshold of ``name``'s panel: its own where ``threshold`` is per name."""
+    return threshold.get(name) if isinstance(threshold, dict) else threshold
 
 
 def value_limits(values: np.ndarray, log: bool) -> tuple[float, float]:

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..confidence import CHI2_1_95, Z95_ONE_SIDED
 from ..diagnosis.policy import MISSED_Z
 from ..diagnosis.result import Diagnosis
 from ..inference.posterior import Posterior
@@ -15,6 +14,7 @@ from .explain import below_optimum_sentence, parameter_rows
 from .wording import (
     caveat_sentence,
     finding_size,
+    profile_sentence,
     search_sentence,
     skipped_sentence,
     verdict_sentence,
@@ -57,7 +57,7 @@ def format_table(result: FitResult) -> str:
         f"{pr.wall_time:.1f} s"
     )
     if "threshold" in result.estimates.profile:
-        lines.append(_profile_line(result.estimates.profile))
+        lines.append(profile_sentence(result.estimates.profile))
     lines += below_optimum_note(result.estimates.profiles)
     lines += advice
     for k, share in enumerate(st.regime_share):
@@ -85,31 +85,6 @@ def format_table(result: FitResult) -> str:
             "miss; look at the spectrum plot (--plot)."
         )
     return "\n".join(lines)
-
-
-def _profile_line(profile: dict) -> str:
-    """How the 95 % intervals' profile threshold was set: χ²₁'s 3.84 plus an allowance (none
-    on the learned likelihood, which has no Monte Carlo noise)."""
-    if profile.get("likelihood") == "learned":
-        return (
-            f"95 % intervals: where the profile cost is within {profile['threshold']:.2f} of the "
-            "optimum's (χ²₁; the learned likelihood is smooth and has no Monte Carlo noise)"
-        )
-    sd, source = profile["monte_carlo_sd"], "the Monte Carlo noise of a cost difference"
-    rough = profile.get("roughness_sd", profile.get("roughness_rms", 0.0))
-    if rough > sd:
-        sd = rough
-        if "roughness_sd" in profile:
-            source = (
-                "the cost's spread 1–2 % from the optimum over "
-                f"{profile['realisation_sets']} realisation sets"
-            )
-        else:
-            source = "the cost's roughness (rms) 1–2 % from the optimum"
-    return (
-        f"95 % intervals: where the profile cost is within {profile['threshold']:.1f} of the "
-        f"optimum's (χ²₁ {CHI2_1_95:.2f} + {Z95_ONE_SIDED} × {sd:.1f}, {source})"
-    )
 
 
 def below_optimum_note(profiles: dict) -> list[str]:

@@ -4,6 +4,7 @@ words them."""
 
 from __future__ import annotations
 
+from ..confidence import CHI2_1_95, Z95_ONE_SIDED
 from ..diagnosis.evidence import Finding
 from ..diagnosis.outcome import EffectOutcome
 from ..diagnosis.policy import Skipped
@@ -236,3 +237,51 @@ def search_sentence(search: dict) -> str:
         text = "converged"
     recentred = int(search.get("recentred", 0))
     return text + (f"; re-centred {recentred}× on the profiles' minimum" if recentred else "")
+
+
+def profile_sentence(profile: dict) -> str:
+    """How the 95 % intervals' profile thresholds were set (the fit JSON's ``fit.profile``):
+    on the learned likelihood, critical values by simulation (χ²₁'s 3.84 without them); on
+    the synthetic one, χ²₁'s 3.84 plus an allowance for the cost's Monte Carlo noise."""
+    if profile.get("likelihood") == "learned":
+        calibration = profile.get("calibration")
+        if calibration is None:
+            return (
+                f"95 % intervals: where the profile cost is within {profile['threshold']:.2f} "
+                "of the optimum's (χ²₁; the learned likelihood is smooth and has no Monte "
+                "Carlo noise)"
+            )
+        values = ", ".join(f"{k} {v:.1f}" for k, v in profile["thresholds"].items())
+        return (
+            "95 % intervals: where the profile cost is within its critical value of the "
+            f"optimum's, set so that each holds its truth in 95 % of "
+            f"{calibration['simulations']} recordings simulated near the optimum "
+            f"(χ²₁: {CHI2_1_95:.2f}): {values}"
+        )
+    if "monte_carlo_sd" not in profile:
+        return (
+            f"95 % intervals: where the profile cost is within {profile['threshold']:.1f} of "
+            "the optimum's (χ²₁'s 3.84 plus an allowance for the Monte Carlo noise and "
+            "roughness of the cost)"
+        )
+    sd, source = profile["monte_carlo_sd"], "the Monte Carlo noise of a cost difference"
+    rough = profile.get("roughness_sd", profile.get("roughness_rms", 0.0))
+    if rough > sd:
+        sd = rough
+        if "roughness_sd" in profile:
+            source = (
+                "the cost's spread 1–2 % from the optimum over "
+                f"{profile['realisation_sets']} realisation sets"
+            )
+        else:
+            source = "the cost's roughness (rms) 1–2 % from the optimum"
+    return (
+        f"95 % intervals: where the profile cost is within {profile['threshold']:.1f} of the "
+        f"optimum's (χ²₁ {CHI2_1_95:.2f} + {Z95_ONE_SIDED} × {sd:.1f}, {source})"
+    )
+
+
+def profile_thresholds(profile: dict) -> float | dict | None:
+    """What the profile plot draws as each parameter's 95 % threshold: the critical values by
+    name where the fit set them by simulation, else the one threshold (None: none)."""
+    return profile.get("thresholds", profile.get("threshold"))
