@@ -28,7 +28,9 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import itertools
+import multiprocessing
 import time
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 from common import add_set_argument, provenance, set_overrides, write_result
@@ -211,6 +213,70 @@ def print_summary(rows: list[dict]) -> None:
     )
 
 
+def case_row(n: int, k: int, seed: int, overrides: dict, companion, quiet: bool) -> dict | None:
+    """Case ``n`` (grid point ``k``, recording seed ``seed``) simulated and identified: its
+    row, or None when it is the companion's own lubrication."""
+    rf.configure()
+    pair, lub, cd, (pct, f) = GRID[k]
+    a, temp = LUBRICATION[lub]
+    g = rf.table2_pair(pair, center_distance_mm=cd)
+    mu = dynamic_viscosity(temp, 156.5, 15.7, 890.0)
+    op = OperatingPoint(lub, temp, 52.36, 52.36 * pct / 100, f)
+    params = rf.RattleParams(a, DRAG[pair], mu, g.backlash)
+    recs = [synthesize(g, op, params, seed=seed)[0]]
+    film = "film_half_length"
+    if companion:
+        if lub == companion:
+            return None
+        rec_c, a_c = companion_recording(g, op, pair, companion, seed + 1)
+        recs.append(rec_c)
+        film, film_c = film_names([lub, companion])
+    t0 = time.perf_counter()
+    res = identify(
+        recs,
+        FitOptions(seed=seed, **overrides),
+        progress=None if quiet else lambda msg: print(f"  [{n + 1}] {msg}", flush=True),
+    )
+    truth = {"film_half_length": a, "drag_torque": DRAG[pair], "viscosity": mu}
+    row = {
+        "case": f"pair {pair}, {lub}, {cd} mm, {pct} %, {f:g} Hz",
+        "seed": seed,
+        "wall_s": time.perf_counter() - t0,
+        "chi2": res.statistics.chi2,
+        "dof": res.statistics.dof,
+        "poor_fit": res.statistics.poor_fit,
+    }
+    for name, value in truth.items():
+        reported = film if name == "film_half_length" else name
+        row[name] = interval_row(res.estimates.parameters[reported], value)
+        chi2_1 = chi2_1_row(res, reported, value)
+        if chi2_1 is not None:
+            row[name]["chi2_1"] = chi2_1
+    if companion:
+        c = interval_row(res.estimates.parameters[film_c], a_c)
+        row["a_companion"] = {k: c[k] for k in ("truth", "lower", "upper", "covered")}
+    a_est = row["film_half_length"]
+    row["a_within_20pct"] = (
+        None if not a_est["identified"] or a == 0 else abs(a_est["estimate"] / a - 1) <= 0.2
+    )
+    row["success"] = res.statistics.success
+    return row
+
+
+def print_row(row: dict, n: int, cases: int, companion) -> None:
+    """One case's line: each interval in or out, `a` identified, χ² and time."""
+    cov = " ".join(f"{k}:{'IN' if row[k]['covered'] else 'OUT'}" for k in NAMES)
+    ident = "a identified" if row["film_half_length"]["identified"] else "a not identified"
+    if companion:
+        ident += f"; companion a:{'IN' if row['a_companion']['covered'] else 'OUT'}"
+    poor = " (flagged poor fit)" if row["poor_fit"] else ""
+    print(
+        f"[{n + 1}/{cases}] {row['case']} (seed {row['seed']}): {cov}; {ident}; "
+        f"χ²={row['chi2']:.0f}/{row['dof']}{poor}; {row['wall_s']:.0f} s",
+        flush=True,
+    )
+
+
 def main() -> None:
     args, overrides = parse_args()
     print(
@@ -221,69 +287,21 @@ def main() -> None:
     rng = np.random.default_rng(args.seed)
     picks = rng.choice(len(GRID), size=min(args.cases, len(GRID)), replace=False)
     rows = []
+    # each case in a fresh process: one process that compiles fit after fit runs out of
+    # memory maps for its compiled code
+    fresh = multiprocessing.get_context("spawn")
     for n, k in enumerate(picks):
-        pair, lub, cd, (pct, f) = GRID[k]
-        a, temp = LUBRICATION[lub]
-        g = rf.table2_pair(pair, center_distance_mm=cd)
-        mu = dynamic_viscosity(temp, 156.5, 15.7, 890.0)
-        op = OperatingPoint(lub, temp, 52.36, 52.36 * pct / 100, f)
-        params = rf.RattleParams(a, DRAG[pair], mu, g.backlash)
         seed = int(rng.integers(1 << 30))
         if args.only and n + 1 not in args.only:
             continue
-        recs = [synthesize(g, op, params, seed=seed)[0]]
-        film = "film_half_length"
-        if args.companion:
-            if lub == args.companion:
-                print(f"[{n + 1}/{len(picks)}] pair {pair}, {lub}: skipped (the companion's)")
-                continue
-            rec_c, a_c = companion_recording(g, op, pair, args.companion, seed + 1)
-            recs.append(rec_c)
-            film, film_c = film_names([lub, args.companion])
-        t0 = time.perf_counter()
-        res = identify(
-            recs,
-            FitOptions(seed=seed, **overrides),
-            progress=None
-            if args.quiet
-            else lambda msg, n=n: print(f"  [{n + 1}] {msg}", flush=True),
-        )
-        truth = {"film_half_length": a, "drag_torque": DRAG[pair], "viscosity": mu}
-        row = {
-            "case": f"pair {pair}, {lub}, {cd} mm, {pct} %, {f:g} Hz",
-            "seed": seed,
-            "wall_s": time.perf_counter() - t0,
-            "chi2": res.statistics.chi2,
-            "dof": res.statistics.dof,
-            "poor_fit": res.statistics.poor_fit,
-        }
-        for name, value in truth.items():
-            row[name] = interval_row(
-                res.estimates.parameters[film if name == "film_half_length" else name], value
-            )
-            chi2_1 = chi2_1_row(res, film if name == "film_half_length" else name, value)
-            if chi2_1 is not None:
-                row[name]["chi2_1"] = chi2_1
-        if args.companion:
-            c = interval_row(res.estimates.parameters[film_c], a_c)
-            row["a_companion"] = {k: c[k] for k in ("truth", "lower", "upper", "covered")}
-        a_est = row["film_half_length"]
-        row["a_within_20pct"] = (
-            None if not a_est["identified"] or a == 0 else abs(a_est["estimate"] / a - 1) <= 0.2
-        )
+        with ProcessPoolExecutor(1, mp_context=fresh) as pool:
+            job = pool.submit(case_row, n, int(k), seed, overrides, args.companion, args.quiet)
+            row = job.result()
+        if row is None:
+            print(f"[{n + 1}/{len(picks)}] skipped (the companion's lubrication)")
+            continue
         rows.append(row)
-        cov = " ".join(f"{k}:{'IN' if row[k]['covered'] else 'OUT'}" for k in truth)
-        ident = "a identified" if a_est["identified"] else "a not identified"
-        if args.companion:
-            ident += f"; companion a:{'IN' if row['a_companion']['covered'] else 'OUT'}"
-        st = res.statistics
-        poor = " (flagged poor fit)" if st.poor_fit else ""
-        print(
-            f"[{n + 1}/{len(picks)}] {row['case']} (seed {seed}): {cov}; {ident}; "
-            f"χ²={st.chi2:.0f}/{st.dof}{poor}; "
-            f"{row['wall_s']:.0f} s",
-            flush=True,
-        )
+        print_row(row, n, len(picks), args.companion)
     print_summary(rows)
     if args.json:
         doc = {"options": overrides, "seed": args.seed, "companion": args.companion, "cases": rows}
