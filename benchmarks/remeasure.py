@@ -56,6 +56,11 @@ RECIPES: dict[str, tuple[str, float]] = {
         "python studies/coverage.py --seed 0 --quiet --result studies/results/coverage.json",
         60,
     ),
+    "coverage_learned.json": (
+        "python studies/coverage.py --seed 1 --quiet --set 'likelihood=\"learned\"' "
+        "--result studies/results/coverage_learned.json",
+        40,
+    ),
     "companion.json": (
         "python studies/coverage.py --seed 0 --companion oil_jet --quiet "
         "--result studies/results/companion.json",
