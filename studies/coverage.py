@@ -171,7 +171,9 @@ def result_document(rows: list[dict], seed: int, overrides: dict) -> dict:
     return {
         "headline": not overrides,
         "order": 7,
-        "what": "`identify` coverage: truth inside the 95 % intervals of `a`, `T_b` and μ",
+        "what": "`identify` coverage"
+        + (f" with {overrides}" if overrides else "")
+        + ": truth inside the 95 % intervals of `a`, `T_b` and μ",
         "summary": f"{covered}/{total} = {covered / total:.0%} over a seeded sample of "
         f"{len(rows)} cases (seed {seed}); `a` identified in {len(within)}, within 20 % in "
         f"{sum(within)}; missed: {', '.join(missed) or 'none'}{compared}",
