@@ -65,6 +65,8 @@ def test_every_tabled_result_can_be_measured_again():
         words = command.split()
         assert words[0] == "python" and minutes > 0, name
         source = (ROOT / words[1]).read_text(encoding="utf-8")
+        if "from common import" in source:  # the studies' shared options (--set)
+            source += (ROOT / "studies" / "common.py").read_text(encoding="utf-8")
         unknown = [w for w in words if w.startswith("--") and f'"{w}"' not in source]
         assert not unknown, f"{name}: {words[1]} has no option {unknown}"
 
