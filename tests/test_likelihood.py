@@ -433,7 +433,10 @@ def test_a_stored_likelihood_is_reused_and_refused_for_another_test_point(learne
     with pytest.raises(rf.RattlefitError, match=r"l\.h5: /learned_likelihood@key"):
         read_learned(path, other)
     reused = rf.identify(
-        [rec], rf.FitOptions.quick(seed=0, likelihood="learned", reuse_likelihood=str(path))
+        [rec],
+        rf.FitOptions.quick(
+            seed=0, likelihood="learned", reuse_likelihood=str(path), calibration_simulations=20
+        ),
     )
     assert reused.provenance.likelihood["reused"] == str(path)
     assert reused.provenance.likelihood["simulations_per_recording"] >= learned.design.u.shape[0]
@@ -447,6 +450,7 @@ TINY = dict(
     check_realisations=2,
     learning_refinements=0,
     profile_group=False,  # the layout's property needs no squeeze-momentum profile
+    calibration_simulations=20,  # the critical values' layout property at their least budget
 )
 #: One identification on the learned likelihood, printed as JSON, in a process with N devices,
 #: on one core when told ("1") or on every core the test may use ("all").
