@@ -84,6 +84,26 @@ def test_interval_factors_and_adding_information():
     assert names[-1] == "film_half_length[oil_jet]" and info[2, 2] == 9.0 and info[0, 2] == 0.0
 
 
+def test_a_parameter_along_an_uninformed_direction_is_unbounded_and_information_never_widens():
+    # information that pins a + T_b but not a − T_b leaves each of them unbounded (a
+    # pseudo-inverse would give the uninformed direction zero variance and a finite factor)
+    names = ["film_half_length", "drag_torque", "viscosity_scale"]
+    v = np.array([1.0, 1.0, 0.0]) / math.sqrt(2)
+    f = interval_factors(names, 50.0 * np.outer(v, v) + np.diag([0.0, 0.0, 4.0]))
+    assert f["film_half_length"] == f["drag_torque"] == math.inf
+    assert f["viscosity_scale"] == pytest.approx(math.exp(2 * 1.959963984540054 * 0.5))
+    # information from independent recordings adds (positive semi-definite, here of rank < 3):
+    # no factor may widen, whichever directions the fitted information leaves nil
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        now = rng.normal(size=(3, 2)) * rng.uniform(0, 30, size=2)
+        more = rng.normal(size=(3, 1)) * rng.uniform(0, 30)
+        before = interval_factors(names, now @ now.T)
+        after = interval_factors(names, now @ now.T + more @ more.T)
+        for name in names:
+            assert after[name] <= before[name] * (1 + 1e-9), (name, before, after)
+
+
 def test_a_planned_centre_distance_opens_the_backlash_as_the_involute_relation_says():
     # the paper's relation: Δ(backlash) = 2 Δa tan αt / r1 (primary angle); the measured
     # backlash of the template is kept and moved by that much

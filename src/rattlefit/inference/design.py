@@ -105,14 +105,23 @@ def recording_information(
     return names, info
 
 
+#: Information per unit log² below which a direction counts as uninformed (an sd of 10⁴ in
+#: log): :func:`interval_factors` adds it to the diagonal, so that a direction nothing
+#: informs gets an unbounded interval rather than the zero variance a pseudo-inverse gives it.
+NIL_INFORMATION = 1e-8
+
+
 def interval_factors(names: Sequence[str], info: np.ndarray) -> dict[str, float]:
-    """Predicted 95 % interval factor of each parameter from the total information (P, P):
-    ``exp(2 · 1.96 · sd)``; ``inf`` where it has no information or the factor would exceed
-    ``e^50``."""
-    cov = np.linalg.pinv(info)
+    """Predicted 95 % interval factor of each parameter from the total information (P, P),
+    positive semi-definite: ``exp(2 · 1.96 · sd)``, sd from the inverse of ``info`` plus
+    :data:`NIL_INFORMATION` on its diagonal; ``inf`` where the factor would exceed ``e^50``
+    (a parameter that moves along a direction nothing informs). Adding information never
+    widens a factor."""
+    info = np.asarray(info, dtype=float)
+    cov = np.linalg.inv(info + NIL_INFORMATION * np.eye(len(names)))
     out = {}
     for j, name in enumerate(names):
-        log_width = 2 * Z95 * math.sqrt(max(cov[j, j], 0.0)) if info[j, j] > 1e-12 else math.inf
+        log_width = 2 * Z95 * math.sqrt(max(cov[j, j], 0.0))
         out[name] = math.exp(log_width) if log_width < 50 else math.inf
     return out
 
