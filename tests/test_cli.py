@@ -123,11 +123,11 @@ def test_simulate_refuses_unphysical_and_keeps_old_output(tmp_path):
 def prior_factor(name: str, priors: dict) -> float:
     """The 95 % factor a parameter's prior alone gives (``priors``: the fit document's, by
     name; the default prior otherwise): ``inf`` for a parameter without one."""
-    from rattlefit.confidence import Z95
+    from rattlefit.inference.design import interval_factors
     from rattlefit.problem.parameters import prior_template
 
     log_sd = priors[name]["log_sd"] if name in priors else prior_template(name).log_sd
-    return float("inf") if log_sd is None else float(np.exp(2 * Z95 * log_sd))
+    return float("inf") if log_sd is None else interval_factors([name], [[log_sd**-2.0]])[name]
 
 
 def check_suggestion(plan: dict, output: str, priors: dict) -> None:
