@@ -237,6 +237,46 @@ def test_a_band_candidate_explains_the_gap_when_it_leaves_noise_or_closes_most_o
     assert ("significant rest" in verdict_sentence(diag)) == (named and p_after < 0.01)
 
 
+@pytest.mark.parametrize(("chi2_with", "caveated"), [(30.0, False), (2425.0, True)])
+def test_a_named_size_is_a_95_percent_interval_only_where_its_candidate_leaves_noise(
+    chi2_with, caveated
+):
+    # the profile of a candidate that still misses measures how precisely a wrong model's
+    # best fit is located: its interval is then labelled the fit's precision everywhere
+    from scipy import stats
+
+    from rattlefit.diagnosis.size import interval_caveat
+    from rattlefit.report.tables import format_diagnosis
+    from test_report import _result
+
+    outcome = dataclasses.replace(
+        _outcome("flank_friction", 59019.5, chi2_with, float(stats.chi2.sf(chi2_with, 27))),
+        values={"coefficient": 0.455},
+        units={"coefficient": "1"},
+        intervals={"coefficient": (0.42, 0.52)},
+    )
+    caveat = interval_caveat(outcome, 0.01, 27)
+    assert bool(caveat) == caveated
+    assert interval_caveat(dataclasses.replace(outcome, intervals={}), 0.01, 27) == ""
+    outcome = dataclasses.replace(outcome, interval_caveat=caveat)
+    diag = Diagnosis(
+        baseline=_result(59019.5, 28),
+        residuals=np.zeros((1, 28)),
+        band_centers=np.zeros(28),
+        band_edges=np.zeros(29),
+        outcomes=[outcome],
+        seed=0,
+        wall_time=0.0,
+        refit_costs=(1.0, 1.0),
+        chi2_without=59019.5,
+    )
+    sentence = verdict_sentence(diag)
+    assert ("95 %: 0.42–0.52" in sentence) != caveated, sentence
+    assert ("the fit's precision" in sentence) == caveated, sentence
+    assert ("2425.0 on 27 dof" in format_diagnosis(diag)) == caveated
+    assert json.loads(json.dumps(outcome.as_dict()))["interval_caveat"] == caveat
+
+
 def test_an_effect_whose_simulation_fails_is_a_failed_outcome_not_a_verdict(monkeypatch):
     # A size at the end of its range can make the solver give up (non-finite features): the
     # effect must be reported as failed, never as "not supported" with p = 1, and the JSON

@@ -89,7 +89,7 @@ from .policy import (
 )
 from .result import Diagnosis, baseline_caveats
 from .screening import distinct_rows, free_alternatives, screen
-from .size import relevant, size_intervals
+from .size import interval_caveat, relevant, size_intervals
 from .trial import (
     Trial,
     candidate_problem,
@@ -369,19 +369,23 @@ def try_pairs(
     return outcomes, out
 
 
-def sized(trial: Trial, named: EffectOutcome, fitted: dict) -> EffectOutcome:
+def sized(trial: Trial, named: EffectOutcome, fitted: dict, significance: float) -> EffectOutcome:
     """``named`` with its size estimated with an interval
     (:func:`~rattlefit.diagnosis.size.size_intervals`): its ``values`` hold the profile's
     estimate, its ``intervals`` the 95 % interval, ``relevant`` whether that interval stays
-    above the relevance floor (:func:`~rattlefit.diagnosis.size.relevant`)."""
+    above the relevance floor (:func:`~rattlefit.diagnosis.size.relevant`), and
+    ``interval_caveat`` why it is not a 95 % interval of the size when ``named`` leaves a
+    misfit significant at ``significance`` (:func:`~rattlefit.diagnosis.size.interval_caveat`)."""
     profiled = size_intervals(trial, named.name, fitted[named.name], named.chi2_with)
     intervals = {k: (lo, hi) for k, (_, lo, hi) in profiled.items()}
-    return dataclasses.replace(
+    out = dataclasses.replace(
         named,
         values={**named.values, **{k: best for k, (best, _, _) in profiled.items()}},
         intervals=intervals,
         relevant=relevant(intervals, named.name, trial),
     )
+    dof = max(trial.dof - len(trial.fields(named.name)), 1)
+    return dataclasses.replace(out, interval_caveat=interval_caveat(out, significance, dof))
 
 
 def to_size(outcomes: list[EffectOutcome], evidence: Evidence) -> list[EffectOutcome]:
@@ -404,7 +408,7 @@ def with_interval(
     while pending := to_size(outcomes, evidence):
         for named in pending:
             say(f"profiling the size of {named.name} …")
-            done = sized(trial, named, fitted)
+            done = sized(trial, named, fitted, evidence.significance)
             if not done.relevant:
                 say(f"  {named.name}: its interval reaches below the size worth naming")
             outcomes = [done if o is named else o for o in outcomes]

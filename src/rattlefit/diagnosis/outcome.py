@@ -38,6 +38,11 @@ class EffectOutcome:
         relevance floor, a share of its typical size
         (:func:`~rattlefit.diagnosis.size.relevance_floor`): the band spectrum cannot tell
         it from no effect, and it is not named. True until profiled.
+    interval_caveat : why ``intervals`` are not a 95 % interval of the size, or empty when
+        they are: a candidate that leaves a significant misfit (``p_after`` below the
+        family-wise level) is a model known to miss, and its profile measures how precisely
+        that model's best fit is located, not where the size lies (on a periodic, locked
+        rattle the χ² over the size is rough: a size a tenth off the truth can fit better).
 
     Two effects fitted together have the name ``"<effect>+<effect>"``, their values keyed
     ``"<effect>.<field>"``, and:
@@ -64,6 +69,7 @@ class EffectOutcome:
     failure: str = ""
     intervals: dict[str, tuple[float, float]] = dataclasses.field(default_factory=dict)
     relevant: bool = True
+    interval_caveat: str = ""
     p_beyond: float = float("nan")
     beyond_single: bool = False
 

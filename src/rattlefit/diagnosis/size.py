@@ -101,6 +101,20 @@ def size_intervals(trial: Trial, name: str, z_fit, chi2_fit: float) -> dict[str,
     return out
 
 
+def interval_caveat(outcome, significance: float, dof: int) -> str:
+    """Why the size intervals of ``outcome`` (an
+    :class:`~rattlefit.diagnosis.outcome.EffectOutcome` whose fit has ``dof`` degrees of
+    freedom left) are not 95 % intervals of the size, or empty when they are: its
+    ``p_after`` is below the family-wise ``significance``, a significant misfit left."""
+    if not outcome.intervals or outcome.p_after >= significance:
+        return ""
+    return (
+        f"a significant misfit remains with it (χ² {outcome.chi2_with:.1f} on {dof} dof, "
+        f"p = {outcome.p_after:.2g}): the interval is the precision of a model known to miss, "
+        "not a 95 % interval of the size"
+    )
+
+
 def relevant(intervals: dict[str, tuple[float, float]], name: str, trial: Trial) -> bool:
     """Every sized field of ``name`` (one effect, or two joined by ``+``) has the lower end of
     its interval (``intervals``, key → (lower, upper) as :func:`size_intervals` keys them) at

@@ -335,11 +335,13 @@ def _findings_table(diag: dict, paths: list[str]) -> str:
     )
 
 
-def _interval_words(interval, name: str, unit: str) -> str:
-    """`` (95 %: lo–hi)`` in display units, or nothing without an interval."""
+def _interval_words(interval, name: str, unit: str, caveat: str = "") -> str:
+    """`` (95 %: lo–hi)`` in display units (the fit's precision with a ``caveat``), or
+    nothing without an interval."""
     if not interval:
         return ""
-    return f" (95 %: {shown(interval[0], name, unit)}–{shown(interval[1], name, unit)})"
+    span = "the fit's precision, not a 95 % interval" if caveat else "95 %"
+    return f" ({span}: {shown(interval[0], name, unit)}–{shown(interval[1], name, unit)})"
 
 
 def _diagnosis_section(diag: dict | None, paths: list[str], recordings) -> str:
@@ -357,7 +359,9 @@ def _diagnosis_section(diag: dict | None, paths: list[str], recordings) -> str:
     for e in diag["effects"]:
         size = ", ".join(
             f"{k} {shown(v['value'], k, v['unit'])} {display_unit(k, v['unit'])}".rstrip()
-            + _interval_words(e.get("intervals", {}).get(k), k, v["unit"])
+            + _interval_words(
+                e.get("intervals", {}).get(k), k, v["unit"], e.get("interval_caveat", "")
+            )
             for k, v in e.get("parameters", {}).items()
         )
         if e.get("failure"):

@@ -140,7 +140,8 @@ def _size_cell(o, key: str) -> str:
     text = f"{key} {_si(o.values[key], key, unit)}"
     if key in o.intervals:
         lo, hi = o.intervals[key]
-        text += f" [{_si(lo, key, unit)} – {_si(hi, key, unit)}]"
+        mark = "*" if o.interval_caveat else ""  # the fit's precision, not a 95 % interval
+        text += f" [{_si(lo, key, unit)} – {_si(hi, key, unit)}]{mark}"
     return text
 
 
@@ -223,6 +224,7 @@ def format_diagnosis(diag: Diagnosis) -> str:
     table.insert(1, "  ".join("-" * w for w in widths))
     lines += ["", *table, ""]
     lines += [f"failed: {o.name} ({o.failure})" for o in diag.outcomes if o.failure]
+    lines += [f"* {o.name}'s size: {o.interval_caveat}" for o in diag.outcomes if o.interval_caveat]
     lines += [
         f"not fitted: {name} ({skipped_sentence(name, why)})" for name, why in diag.skipped.items()
     ]

@@ -44,7 +44,7 @@ def typical_phrase(effect: str, value: float) -> str:
 def size_phrase(o: EffectOutcome) -> str:
     """The fitted sizes of ``o`` that have an interval, each against its typical size, e.g.
     ``coefficient 0.16 (95 %: 0.05–0.4), 3.2 × the typical 0.05 […]`` (lengths in
-    µm)."""
+    µm); with an ``interval_caveat`` the interval is called the fit's precision."""
     parts = []
     for key, value in o.values.items():
         if key not in o.intervals:
@@ -53,8 +53,9 @@ def size_phrase(o: EffectOutcome) -> str:
         unit, scale = ("µm", 1e6) if o.units[key] == "m" else (o.units[key], 1.0)
         unit = "" if unit == "1" else f" {unit}"
         effect = key.split(".", 1)[0] if "." in key else o.name
+        span = "the fit's precision, not a 95 % interval" if o.interval_caveat else "95 %"
         parts.append(
-            f"{key} {scale * value:.3g}{unit} (95 %: {scale * lo:.3g}–{scale * hi:.3g})"
+            f"{key} {scale * value:.3g}{unit} ({span}: {scale * lo:.3g}–{scale * hi:.3g})"
             + typical_phrase(effect, value)
         )
     return "; ".join(parts)
