@@ -4,8 +4,11 @@ A result file records the ``command`` it was made with. The files that command r
 scripts (``python X.py``, ``python -m module``, ``python -m pytest tests/…``, ``rattlefit …``,
 ``jupyter nbconvert … X.ipynb``, ``.ci/run``), every repository module those scripts import,
 directly or through others (found by reading their ``import`` statements, those inside
-functions included, ``importlib.import_module("…")`` with a literal name, and a package's
-table of names it imports on first use, ``_LAZY = {"name": ".module", …}``), the
+functions included, ``importlib.import_module("…")`` with a literal name, and, of a
+package's table of names it imports on first use, ``_LAZY = {"name": ".module", …}``, the
+modules of the names the importer uses: ``from pkg import name`` or ``pkg.name``; all of
+them where it uses the package otherwise, e.g. ``getattr(pkg, …)``; and the command line's
+modules where a file starts ``rattlefit`` in a process of its own), the
 repository's files named on the command line (a bundled recording, a notebook), and
 ``constraints.txt`` (the versions of what they import from outside). Nothing is declared by
 hand, so nothing can be forgotten.
@@ -149,7 +152,81 @@ def closure(files, root: Path = ROOT) -> list[str]:
             found = _module_file(name, dirs, root)
             if found:
                 todo.append(root / found)
+                table = lazy_table(root / found, root) if found.endswith("__init__.py") else {}
+                for module in lazy_modules(path.resolve(), name, table):
+                    todo += [root / f for f in [_module_file(module, dirs, root)] if f]
+        if runs_the_command_line(path.resolve()):
+            todo += [root / f for f in [_module_file("rattlefit.cli", [root / "src"], root)] if f]
     return sorted(seen)
+
+
+@functools.cache
+def runs_the_command_line(path: Path) -> bool:
+    """Whether the file ``path`` starts the ``rattlefit`` command: it looks the program up
+    (``….with_name("rattlefit")``, ``shutil.which("rattlefit")``) or lists
+    ``"-m", "rattlefit"``."""
+    try:
+        tree = ast.parse(_source(path))
+    except SyntaxError:
+        return False
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and node.args:
+            looks_up = getattr(node.func, "attr", getattr(node.func, "id", ""))
+            if looks_up in ("with_name", "which") and _is_program(node.args[0]):
+                return True
+        if isinstance(node, ast.List | ast.Tuple):
+            pairs = zip(node.elts, node.elts[1:], strict=False)
+            if any(getattr(a, "value", None) == "-m" and _is_program(b) for a, b in pairs):
+                return True
+    return False
+
+
+def _is_program(node) -> bool:
+    return isinstance(node, ast.Constant) and node.value == "rattlefit"
+
+
+@functools.cache
+def lazy_table(init: Path, root: Path = ROOT) -> dict[str, str]:
+    """A package's ``_LAZY`` table in its ``__init__.py`` ``init``: public name → the absolute
+    dotted module that defines it ({} without one)."""
+    for node in ast.walk(ast.parse(_source(init))):
+        if isinstance(node, ast.Assign) and any(
+            getattr(t, "id", "") == "_LAZY" for t in node.targets
+        ):
+            keys, values = getattr(node.value, "keys", []), getattr(node.value, "values", [])
+            return {
+                k.value: _relative(v.value, init, root)
+                for k, v in zip(keys, values, strict=True)
+                if isinstance(k, ast.Constant) and isinstance(v, ast.Constant)
+            }
+    return {}
+
+
+def lazy_modules(path: Path, package: str, table: dict[str, str]) -> set[str]:
+    """The modules of ``table`` (a package's ``_LAZY``) that the file ``path`` reaches through
+    ``package``: those of the names it imports from it or reads as its attributes, and every
+    one where it uses the package's name otherwise (``getattr(pkg, …)``, ``import *``)."""
+    if not table:
+        return set()
+    tree = ast.parse(_source(path))
+    used, aliases = set(), set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module == package and not node.level:
+            used |= {a.name for a in node.names}
+        elif isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name == package or a.name.startswith(package + "."):
+                    aliases.add(a.asname or a.name.split(".")[0])
+    bases = {id(n.value) for n in ast.walk(tree) if isinstance(n, ast.Attribute)}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and getattr(node.value, "id", None) in aliases:
+            used.add(node.attr)
+        elif isinstance(node, ast.Name) and node.id in aliases and id(node) not in bases:
+            if not isinstance(node.ctx, ast.Store):
+                used |= set(table)  # the package passed on or read dynamically
+    if "*" in used:
+        used |= set(table)
+    return {table[n] for n in used if n in table}
 
 
 @functools.cache
@@ -169,11 +246,6 @@ def imported_names(path: Path, root: Path = ROOT) -> frozenset[str]:
         elif isinstance(node, ast.ImportFrom):
             base = _absolute(node, package)
             names |= {base} | {f"{base}.{a.name}" for a in node.names if a.name != "*"}
-        elif isinstance(node, ast.Assign) and any(
-            getattr(t, "id", "") == "_LAZY" for t in node.targets
-        ):
-            names |= {_relative(v.value, path, root) for v in getattr(node.value, "values", [])
-                      if isinstance(v, ast.Constant) and isinstance(v.value, str)}  # fmt: skip
         elif (
             isinstance(node, ast.Call)
             and getattr(node.func, "attr", getattr(node.func, "id", "")) == "import_module"

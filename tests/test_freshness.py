@@ -74,18 +74,36 @@ def test_what_forward_measures_is_derived_from_its_imports():
     assert gone.missing == ("benchmarks/coverage.py",)
 
 
-def test_an_import_inside_a_function_and_a_lazy_name_are_followed(tmp_path):
+def test_an_import_inside_a_function_and_a_lazy_name_used_are_followed(tmp_path):
     measured, _ = _modules()
     (tmp_path / "src" / "pkg").mkdir(parents=True)
-    (tmp_path / "src" / "pkg" / "__init__.py").write_text('_LAZY = {"Y": ".lazy"}\n')
-    (tmp_path / "src" / "pkg" / "late.py").write_text("X = 1\n")
-    (tmp_path / "src" / "pkg" / "lazy.py").write_text("Y = 1\n")
-    (tmp_path / "src" / "pkg" / "never.py").write_text("X = 2\n")
-    (tmp_path / "helper.py").write_text("def f():\n    from pkg import late\n    return late\n")
+    lazy = '_LAZY = {"Y": ".lazy", "Z": ".other", "W": ".unused"}\n'
+    (tmp_path / "src" / "pkg" / "__init__.py").write_text(lazy)
+    for name in ("late", "lazy", "other", "unused", "never"):
+        (tmp_path / "src" / "pkg" / f"{name}.py").write_text("X = 1\n")
+    (tmp_path / "helper.py").write_text(
+        "def f():\n    from pkg import late, Y\n    import pkg as p\n    return p.Z, late, Y\n"
+    )
     (tmp_path / "run.py").write_text("import helper\n")
     found = measured.closure([tmp_path / "run.py"], tmp_path)
     want = ["helper.py", "run.py", "src/pkg/__init__.py", "src/pkg/late.py", "src/pkg/lazy.py"]
-    assert found == want
+    assert found == [*want, "src/pkg/other.py"]  # W's module is never imported
+    # the package handed on, or read by a computed name, reaches every lazy module
+    (tmp_path / "helper.py").write_text("import pkg\n\ndef f(n):\n    return getattr(pkg, n)\n")
+    measured.imported_names.cache_clear()
+    found = measured.closure([tmp_path / "run.py"], tmp_path)
+    assert "src/pkg/unused.py" in found and "src/pkg/late.py" not in found
+
+
+def test_a_script_that_starts_the_command_line_depends_on_it(tmp_path):
+    measured, _ = _modules()
+    (tmp_path / "run.py").write_text(
+        'import sys\nfrom pathlib import Path\nexe = Path(sys.executable).with_name("rattlefit")\n'
+    )
+    (tmp_path / "other.py").write_text('meta = {"rattlefit": "1.0"}\n')
+    (tmp_path / "module.py").write_text('args = [sys.executable, "-m", "rattlefit", "identify"]\n')
+    for script, starts in (("run.py", True), ("other.py", False), ("module.py", True)):
+        assert measured.runs_the_command_line(tmp_path / script) == starts, script
 
 
 def test_a_result_goes_stale_when_what_it_imports_changes(clone):
