@@ -572,7 +572,7 @@ def test_a_candidate_too_small_to_tell_from_none_is_not_named(monkeypatch, secon
     )
     sizes = {"mesh_damping": (3e-5, 1e-7, 2e-4), "speed_dependent_drag": (4e-4, 2e-4, 8e-4)}
 
-    def sized(trial, named, fitted):
+    def sized(trial, named, fitted, significance):
         best, lo, hi = sizes[named.name]
         key = next(iter(named.values))
         relevant = lo >= {"mesh_damping": 0.0035, "speed_dependent_drag": 2.5e-5}[named.name]
