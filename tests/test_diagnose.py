@@ -203,6 +203,23 @@ def _outcome(name, chi2_without, chi2_with, p_after, dof=28):
     )
 
 
+def _one_candidate_diagnosis(outcome: EffectOutcome) -> Diagnosis:
+    """A diagnosis of a 28-band gap of χ² 59019.5 with ``outcome`` its one candidate."""
+    from test_report import _result
+
+    return Diagnosis(
+        baseline=_result(59019.5, 28),
+        residuals=np.zeros((1, 28)),
+        band_centers=np.zeros(28),
+        band_edges=np.zeros(29),
+        outcomes=[outcome],
+        seed=0,
+        wall_time=0.0,
+        refit_costs=(1.0, 1.0),
+        chi2_without=59019.5,
+    )
+
+
 @pytest.mark.parametrize(
     ("chi2_with", "p_after", "named"),
     [
@@ -216,20 +233,8 @@ def _outcome(name, chi2_without, chi2_with, p_after, dof=28):
 def test_a_band_candidate_explains_the_gap_when_it_leaves_noise_or_closes_most_of_it(
     chi2_with, p_after, named
 ):
-    from test_report import _result
-
     outcome = _outcome("flank_friction", 59019.5, chi2_with, p_after)
-    diag = Diagnosis(
-        baseline=_result(59019.5, 28),
-        residuals=np.zeros((1, 28)),
-        band_centers=np.zeros(28),
-        band_edges=np.zeros(29),
-        outcomes=[outcome],
-        seed=0,
-        wall_time=0.0,
-        refit_costs=(1.0, 1.0),
-        chi2_without=59019.5,
-    )
+    diag = _one_candidate_diagnosis(outcome)
     assert diag.band_gap
     assert (diag.verdict.explaining is outcome) == named
     assert diag.verdict.kind == ("effect" if named else "unexplained")
@@ -247,7 +252,6 @@ def test_a_named_size_is_a_95_percent_interval_only_where_its_candidate_leaves_n
 
     from rattlefit.diagnosis.size import interval_caveat
     from rattlefit.report.tables import format_diagnosis
-    from test_report import _result
 
     outcome = dataclasses.replace(
         _outcome("flank_friction", 59019.5, chi2_with, float(stats.chi2.sf(chi2_with, 27))),
@@ -259,17 +263,7 @@ def test_a_named_size_is_a_95_percent_interval_only_where_its_candidate_leaves_n
     assert bool(caveat) == caveated
     assert interval_caveat(dataclasses.replace(outcome, intervals={}), 0.01, 27) == ""
     outcome = dataclasses.replace(outcome, interval_caveat=caveat)
-    diag = Diagnosis(
-        baseline=_result(59019.5, 28),
-        residuals=np.zeros((1, 28)),
-        band_centers=np.zeros(28),
-        band_edges=np.zeros(29),
-        outcomes=[outcome],
-        seed=0,
-        wall_time=0.0,
-        refit_costs=(1.0, 1.0),
-        chi2_without=59019.5,
-    )
+    diag = _one_candidate_diagnosis(outcome)
     sentence = verdict_sentence(diag)
     assert ("95 %: 0.42–0.52" in sentence) != caveated, sentence
     assert ("the fit's precision" in sentence) == caveated, sentence
