@@ -93,6 +93,10 @@ RECIPES: dict[str, tuple[str, float]] = {
         "--result studies/results/diagnose_full_study.json",
         60,
     ),
+    "step_anatomy.json": (
+        "python benchmarks/step_anatomy.py --json benchmarks/results/step_anatomy.json",
+        2,
+    ),
     "density_error.json": ("python studies/density_error.py --cases 20", 90),
     "own_data.json": ("python studies/own_data.py --seeds 0 1 2", 60),
     "shared_recordings.json": ("python studies/shared_recordings.py --seed 0", 60),
