@@ -42,12 +42,25 @@ def kernel_env() -> dict[str, str]:
     return env
 
 
+#: What the kernel runs before the notebook: JAX started on one CPU device, as in every test
+#: process (tests/conftest.py: pytest-xdist already runs one worker per core). The notebook's
+#: ``rattlefit.configure()`` then keeps that device count, so its compiled programs are the
+#: workers' own, taken from the test run's compilation cache instead of compiled again for a
+#: layout no other test uses. The same seed gives the same fit on any layout
+#: (tests/test_likelihood.py, tests/test_parallel.py).
+KERNEL_START = "import rattlefit; rattlefit.configure(cpu_cores=1); import jax; jax.devices()"
+
+
 @pytest.fixture
 def own_kernel(tmp_path, monkeypatch):
-    """A ``python3`` kernel spec that starts this interpreter (``sys.executable``), first on
-    Jupyter's search path, so that the notebooks run in the test environment and not in a
-    ``python3`` kernel registered elsewhere (the user's or the system's)."""
-    write_kernel_spec(str(tmp_path / "kernels" / KERNEL))
+    """A ``python3`` kernel spec that starts this interpreter (``sys.executable``) with
+    :data:`KERNEL_START`, first on Jupyter's search path, so that the notebooks run in the
+    test environment and not in a ``python3`` kernel registered elsewhere (the user's or the
+    system's)."""
+    write_kernel_spec(
+        str(tmp_path / "kernels" / KERNEL),
+        extra_arguments=[f"--IPKernelApp.exec_lines={KERNEL_START}"],
+    )
     monkeypatch.setenv("JUPYTER_PATH", str(tmp_path))
     return sys.executable
 
