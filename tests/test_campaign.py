@@ -51,6 +51,10 @@ SEED = 40
 #: iterations instead of 3 (cheaper and more reliable on 1 s recordings than more starts).
 FIT = FitOptions.quick(seed=0, n_starts=8, max_iterations=8)
 OPTIONS = CampaignOptions(fit=FIT, resimulations=2)
+#: Workers of one core each, on the default compilation cache: the test run's
+#: ($RATTLEFIT_CACHE_DIR, tests/conftest.py), which they inherit and share with each other and
+#: with the rest of the run, as a campaign's workers share the user's.
+CLUSTER = ClusterOptions(cores_per_worker=1)
 
 # Margins of the truth's checks, as tests/test_fit.py's.
 MARGIN = 1.1  # an interval end may miss the truth by this factor (its Monte Carlo roughness)
@@ -112,7 +116,6 @@ def kill_a_busy_worker(client, killed: dict, stop: threading.Event) -> None:
 def campaign(client, manifest, tmp_path_factory):
     """The campaign, run once with a worker killed mid-run: (result, output, killed)."""
     out = tmp_path_factory.mktemp("campaign")
-    cache = tmp_path_factory.mktemp("jax")
     killed, stop = {}, threading.Event()
     killer = threading.Thread(target=kill_a_busy_worker, args=(client, killed, stop))
     killer.start()
@@ -121,17 +124,17 @@ def campaign(client, manifest, tmp_path_factory):
             manifest,
             out,
             options=OPTIONS,
-            cluster=ClusterOptions(cores_per_worker=1, compilation_cache=cache),
+            cluster=CLUSTER,
             client=client,
         )
     finally:
         stop.set()
         killer.join()
-    return result, out, killed, cache
+    return result, out, killed
 
 
 def test_a_killed_worker_loses_only_its_task_and_a_truncated_file_is_reported(campaign):
-    result, out, killed, _ = campaign
+    result, out, killed = campaign
     assert killed, "no worker was killed: no fit ran long enough"
     assert result.units == 7 and result.ran == 6 and result.skipped == 0
     # the truncated file is the one failure, named, at reading; the other six are identified
@@ -163,7 +166,7 @@ def test_the_table_holds_the_truth_where_identify_would(campaign):
     # widened by √(χ²/dof), excludes oil-jet films). A boundary film's interval holds its
     # truth only where the profiles follow the film's valley (the full settings, asserted
     # there): at quick settings a boundary recording is asked only for T_b and μ
-    _, out, _, _ = campaign
+    _, out, _ = campaign
     table = read_table(out)
     misses = []
     for _, row in table.iterrows():
@@ -191,7 +194,7 @@ def test_the_table_holds_the_truth_where_identify_would(campaign):
 
 
 def test_a_rerun_resumes_what_is_missing_and_then_skips_everything(campaign, client, manifest):
-    _, out, _, cache = campaign
+    _, out, _ = campaign
     before = read_table(out)
     # a client killed before it wrote one fit's record: that fit alone runs again, and gives
     # the same rows to the last bit (seeded)
@@ -202,7 +205,7 @@ def test_a_rerun_resumes_what_is_missing_and_then_skips_everything(campaign, cli
         manifest,
         out,
         options=OPTIONS,
-        cluster=ClusterOptions(cores_per_worker=1, compilation_cache=cache),
+        cluster=CLUSTER,
         client=client,
     )
     assert again.ran == 1 and again.skipped == 5, (again.ran, again.skipped, lost)
@@ -214,7 +217,6 @@ def test_a_rerun_resumes_what_is_missing_and_then_skips_everything(campaign, cli
     args = ["campaign", str(manifest), "-o", str(out), "--quick", "--starts", "8"]
     args += ["--iterations", "8", "--seed", "0"]
     args += ["--scheduler", client.scheduler.address, "--resimulations", "2"]
-    args += ["--compile-cache", str(cache)]
     run = CliRunner().invoke(main, args)
     assert run.exit_code == 1, run.output
     assert "0 run, 6 already done, 1 failure(s)" in run.output
@@ -295,7 +297,7 @@ def test_manifests_group_recordings_and_bad_ones_are_one_clear_error(tmp_path, m
 
 
 def test_the_report_shows_the_diagnoses_and_failures(campaign, tmp_path):
-    _, out, _, _ = campaign
+    _, out, _ = campaign
     records = [json.loads(p.read_text()) for p in sorted((out / "tasks").glob("fit-*.json"))]
     rows = read_table(out).to_dict("records")
     recordings = [r for rec in records for r in rec["recording_info"]]
