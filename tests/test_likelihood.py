@@ -42,7 +42,7 @@ from rattlefit.likelihood.store import Learned, read_learned, write_learned
 from rattlefit.likelihood.synthetic import ensemble_features
 from rattlefit.likelihood.training import mean_value_and_grad, pairwise_sum
 from rattlefit.physics.model import squeeze_momentum
-from rattlefit.problem.parameters import ParameterSpec, parameter_prior
+from rattlefit.problem.parameters import ParameterSpec
 from rattlefit.problem.problem import problem_from
 
 QUICK = DensityOptions(layers=3, width=32, max_epochs=150, patience=10)
@@ -442,56 +442,6 @@ def test_a_stored_likelihood_is_reused_and_refused_for_another_test_point(learne
     )
     assert reused.provenance.likelihood["reused"] == str(path)
     assert reused.provenance.likelihood["simulations_per_recording"] >= learned.design.u.shape[0]
-
-
-# The squeeze-film group's interval in a learned fit (tests/test_group.py holds its closed
-# form and coordinate). It stands after the learned_fit tests: on the same worker it reuses most
-# of the programs their fit compiled.
-def test_with_the_nuisances_known_the_groups_interval_is_the_films_carried_through():
-    # h_min and the viscosity pinned by priors of 1 %: M is then a function of a alone, so
-    # the group's interval is the film's carried through M(a), whatever the data say, with one
-    # analytic threshold for both; and its estimate is M at the optimum. On the learned
-    # likelihood, whose profiles are smooth: the synthetic one's Monte Carlo roughness can
-    # keep a profile near its threshold over a factor of 1.5 in a, and the two intervals'
-    # ends then fall anywhere in it
-    rec = rf.read_recording(BOUNDARY)
-    priors = {
-        "min_film": parameter_prior("min_film", 2e-6, 0.01),
-        "viscosity_scale": parameter_prior("viscosity_scale", 1.0, 0.01),
-    }
-    # the property is the profiles', not the density's quality: the quick preset's first two
-    # learnings (768 simulations) without refinement suffice; the ratio held within its band
-    # at seeds 0–2, and a budget of 384 did not (a at its prior's lower edge)
-    options = rf.FitOptions.quick(
-        seed=0,
-        priors=priors,
-        likelihood="learned",
-        calibration_simulations=0,
-        learning_rounds=1,
-        learning_refinements=0,
-        check_realisations=8,
-    )
-    result = rf.identify([rec], options)
-    a, g = (
-        result.estimates.parameters["film_half_length"],
-        result.estimates.parameters["squeeze_momentum"],
-    )
-    mp = result.estimates.map_params[0]
-    problem = result.state.problem
-    radius, width = (
-        float(problem.models.curvature_radius[0]),
-        float(problem.models.axial_width[0]),
-    )
-
-    def momentum(film):
-        return float(squeeze_momentum(film, mp["viscosity"], mp["min_film"], radius, width))
-
-    assert g.estimate == pytest.approx(momentum(mp["film_half_length"]), rel=1e-6)
-    assert a.lower > 0 and g.lower > 0 and a.bound != "lower" and g.bound != "lower", (a, g)
-    ratio = math.log(g.upper / g.lower) / math.log(momentum(a.upper) / momentum(a.lower))
-    assert 0.8 < ratio < 1.2, (ratio, a, g)
-    assert list(result.estimates.parameters)[3] == "squeeze_momentum"
-    assert result.to_json()["parameters"]["squeeze_momentum"]["unit"] == "N s"
 
 
 TINY = dict(
