@@ -9,19 +9,20 @@ import shutil
 import tempfile
 from pathlib import Path
 
-import jax
 import pytest
 from threadpoolctl import threadpool_limits
 
 import rattlefit as rf
 from rattlefit.compile_cache import CACHE_ENV
 from rattlefit.testing.shared import recordings_dir
+from xla_threads import start_jax_on_one_thread
 
 # pytest-xdist already runs one worker per core: keep each worker on one JAX device (starting
-# JAX here fixes that, so the CLI's use_cpu_cores() is a no-op under test), and its BLAS on one
-# thread (two workers each spinning two BLAS threads on two cores run numpy's matrix products
-# several times slower). numpy is loaded before this file, so the environment variable would
-# come too late: threadpoolctl sets the loaded library.
+# JAX here fixes that, so the CLI's use_cpu_cores() is a no-op under test) served by one thread
+# of XLA's CPU pool (tests/xla_threads.py), and its BLAS on one thread (two workers each
+# spinning two BLAS threads on two cores run numpy's matrix products several times slower).
+# numpy is loaded before this file, so the environment variable would come too late:
+# threadpoolctl sets the loaded library.
 # One compilation cache for the whole test run, in a temporary directory that the main process
 # makes before the workers start (they, and every CLI, notebook and campaign process a test
 # starts, inherit it) and removes at its exit: the same programs are compiled once, not once
@@ -32,7 +33,7 @@ if CACHE_ENV not in os.environ:
     atexit.register(shutil.rmtree, os.environ[CACHE_ENV], ignore_errors=True)
 rf.configure(cpu_cores=1)
 rf.use_compilation_cache()  # $RATTLEFIT_CACHE_DIR, or none when it is "off"
-jax.devices()
+start_jax_on_one_thread()
 threadpool_limits(limits=1, user_api="blas")
 
 ROOT = Path(__file__).resolve().parents[1]

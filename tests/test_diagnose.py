@@ -876,12 +876,15 @@ def test_an_independent_recording_with_runout_is_given_runout(
     shared_recordings, shared_truth, tmp_path
 ):
     # Through the command line: the JSON, the figures, and the verdict and caveats on screen.
-    # (Notebook 04 diagnoses a recording with withheld flank friction on the same settings,
-    # in CI too, and asserts the friction's name, its share of the gap and its size.)
+    # From a quick identification, as notebook 04's quick run diagnoses a recording with
+    # withheld flank friction (and asserts the friction's name, its share of the gap and its
+    # size): the run-out's encoder pattern stands far outside the null however rough the fit
+    # (run-out named at seeds 0-2). The clean recording above needs the default fit: a quick
+    # one leaves a band gap beyond what a model-form difference leaves.
     assert "runout" in " ".join(shared_truth[SHARED_RUNOUT]["unmodelled_effects"])
     out, plots = tmp_path / "diagnosis.json", tmp_path / "plots"
-    args = ["diagnose", str(shared_recordings / f"{SHARED_RUNOUT}.h5"), "-q", "-o", str(out)]
-    args += ["--effects", ",".join(TRIED), "--plot", str(plots)]
+    args = ["diagnose", str(shared_recordings / f"{SHARED_RUNOUT}.h5"), "--quick", "-q"]
+    args += ["-o", str(out), "--effects", ",".join(TRIED), "--plot", str(plots)]
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 0, result.output
     doc = json.loads(out.read_text())

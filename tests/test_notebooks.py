@@ -32,23 +32,27 @@ KERNEL = "python3"
 
 def kernel_env() -> dict[str, str]:
     """The kernel's environment: this one (the test run's compilation cache included), the
-    notebooks' quick switch, one BLAS thread, and the rattlefit the tests import first on the
-    path (a checkout's ``src`` or the installed package's folder)."""
+    notebooks' quick switch, one BLAS thread, and on the path the rattlefit the tests import
+    first (a checkout's ``src`` or the installed package's folder) and these tests' helpers."""
     env = dict(os.environ)
     env["RATTLEFIT_NOTEBOOK_QUICK"] = "1"
     env["OPENBLAS_NUM_THREADS"] = "1"  # one BLAS thread beside the other pytest-xdist worker
     package_root = str(Path(rattlefit.__file__).resolve().parents[1])
-    env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH", "")) if p)
+    paths = (package_root, str(Path(__file__).parent), env.get("PYTHONPATH", ""))
+    env["PYTHONPATH"] = os.pathsep.join(p for p in paths if p)
     return env
 
 
-#: What the kernel runs before the notebook: JAX started on one CPU device, as in every test
-#: process (tests/conftest.py: pytest-xdist already runs one worker per core). The notebook's
-#: ``rattlefit.configure()`` then keeps that device count, so its compiled programs are the
-#: workers' own, taken from the test run's compilation cache instead of compiled again for a
-#: layout no other test uses. The same seed gives the same fit on any layout
-#: (tests/test_likelihood.py, tests/test_parallel.py).
-KERNEL_START = "import rattlefit; rattlefit.configure(cpu_cores=1); import jax; jax.devices()"
+#: What the kernel runs before the notebook: JAX started on one CPU device with one thread in
+#: XLA's pool, as in every test process (tests/conftest.py: pytest-xdist already runs one
+#: worker per core). The notebook's ``rattlefit.configure()`` then keeps that device count, so
+#: its compiled programs are the workers' own, taken from the test run's compilation cache
+#: instead of compiled again for a layout no other test uses. The same seed gives the same fit
+#: on any layout (tests/test_likelihood.py, tests/test_parallel.py).
+KERNEL_START = (
+    "import rattlefit; rattlefit.configure(cpu_cores=1); "
+    "from xla_threads import start_jax_on_one_thread; start_jax_on_one_thread()"
+)
 
 
 @pytest.fixture
