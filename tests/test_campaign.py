@@ -69,7 +69,8 @@ KILL_AFTER = 1.0
 @pytest.fixture(scope="module")
 def client(tmp_path_factory):
     """A scheduler (in this process, on loopback TCP) and two worker processes of one thread
-    each; closed, workers killed, at the end of the module."""
+    each, whose JAX has one thread in XLA's pool as every test process (tests/xla_threads.py);
+    closed, workers killed, at the end of the module."""
     from distributed import Client, LocalCluster
 
     with (
@@ -79,6 +80,7 @@ def client(tmp_path_factory):
             processes=True,
             host="127.0.0.1",
             dashboard_address=None,
+            preload=[str(Path(__file__).with_name("xla_threads.py"))],
         ) as cluster,
         Client(cluster) as c,
     ):

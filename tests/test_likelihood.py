@@ -454,8 +454,8 @@ TINY = dict(
     profile_group=False,  # the layout's property needs no squeeze-momentum profile
     calibration_simulations=20,  # the critical values' layout property at their least budget
 )
-#: One identification on the learned likelihood, printed as JSON, in a process with N devices,
-#: on one core when told ("1") or on every core the test may use ("all").
+#: One identification on the learned likelihood, printed as JSON, in a process with N devices
+#: free on every core the test may use (XLA's pool then has a thread per core).
 DEVICE_SCRIPT = """
 import json, sys
 import rattlefit as rf

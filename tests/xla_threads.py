@@ -38,3 +38,13 @@ def pool_threads() -> int:
     """How many threads of this process are XLA's CPU pool (named ``tf_XLAEigen``)."""
     names = (task / "comm" for task in Path("/proc/self/task").iterdir())
     return sum(1 for name in names if name.read_text().strip() == "tf_XLAEigen")
+
+
+def dask_setup(worker) -> None:
+    """As a dask worker's preload (this file's path in ``preload=``): configure rattlefit as
+    every test process does (one device) and start JAX on one pool thread before the worker
+    runs a task; the campaign's own ``configure`` then finds the settings in effect."""
+    import rattlefit as rf
+
+    rf.configure(cpu_cores=1)
+    start_jax_on_one_thread()
