@@ -31,9 +31,8 @@ from xla_threads import start_jax_on_one_thread
 if CACHE_ENV not in os.environ:
     os.environ[CACHE_ENV] = tempfile.mkdtemp(prefix="rattlefit-test-cache-")
     atexit.register(shutil.rmtree, os.environ[CACHE_ENV], ignore_errors=True)
-rf.configure(cpu_cores=1)
+start_jax_on_one_thread()  # rattlefit configured on one device
 rf.use_compilation_cache()  # $RATTLEFIT_CACHE_DIR, or none when it is "off"
-start_jax_on_one_thread()
 threadpool_limits(limits=1, user_api="blas")
 
 ROOT = Path(__file__).resolve().parents[1]

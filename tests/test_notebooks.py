@@ -49,10 +49,7 @@ def kernel_env() -> dict[str, str]:
 #: its compiled programs are the workers' own, taken from the test run's compilation cache
 #: instead of compiled again for a layout no other test uses. The same seed gives the same fit
 #: on any layout (tests/test_likelihood.py, tests/test_parallel.py).
-KERNEL_START = (
-    "import rattlefit; rattlefit.configure(cpu_cores=1); "
-    "from xla_threads import start_jax_on_one_thread; start_jax_on_one_thread()"
-)
+KERNEL_START = "from xla_threads import start_jax_on_one_thread; start_jax_on_one_thread()"
 
 
 @pytest.fixture

@@ -16,8 +16,6 @@ SCRIPT = """
 import json, os
 from pathlib import Path
 before = sorted(os.sched_getaffinity(0))
-import rattlefit as rf
-rf.configure(cpu_cores=1)
 from xla_threads import pool_threads, start_jax_on_one_thread
 start_jax_on_one_thread()
 tasks = Path("/proc/self/task").iterdir()
