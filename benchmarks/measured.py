@@ -2,7 +2,7 @@
 
 A result file records the ``command`` it was made with. The files that command runs are its
 scripts (``python X.py``, ``python -m module``, ``python -m pytest tests/…``, ``rattlefit …``,
-``jupyter nbconvert … X.ipynb``, ``.ci/run``), every repository module those scripts import,
+``jupyter execute X.ipynb``, ``.ci/run``), every repository module those scripts import,
 directly or through others (found by reading their ``import`` statements, those inside
 functions included, ``importlib.import_module("…")`` with a literal name, and, of a
 package's table of names it imports on first use, ``_LAZY = {"name": ".module", …}``, the

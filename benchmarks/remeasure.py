@@ -118,8 +118,8 @@ BY_HAND: dict[str, str] = {
     "slow_tests.json": "RATTLEFIT_SLOW=1 python -m pytest -n 2 tests/test_fit.py",
     "joint_sweep.json": "python studies/sweep_study.py --center-distances 65.0 65.4 66.0 "
     "--refits 3",
-    "diagnose_withheld_friction.json": "RATTLEFIT_NOTEBOOK_QUICK=0 jupyter nbconvert --execute "
-    "notebooks/04_diagnose_the_gap.ipynb",
+    "diagnose_withheld_friction.json": "RATTLEFIT_NOTEBOOK_QUICK=0 jupyter execute "
+    "notebooks/04_diagnose_the_gap.ipynb (its outputs)",
 }
 
 
