@@ -1,0 +1,179 @@
+"""Where a simulation's steps go: free flight inside the backlash, the squeeze film ahead of a
+flank, or mesh contact.
+
+A simulation's cost is its number of solver steps times the cost of one
+(``benchmarks/step_anatomy.py``). This script counts the steps of one simulation per
+operating point of the forward comparison (the first seven independent recordings, at their
+truth, released at rest on the drive flank as :func:`rattlefit.simulate` does), with the
+solver and controller of :func:`rattlefit.simulate` and the absolute tolerances of a fit
+(:func:`rattlefit.simulation.solve.absolute_tolerances`), and sorts each accepted step by the
+state at its start:
+
+* ``contact``: the nearer flank's gap is closed (the mesh force acts);
+* ``film``: the gap is open, but the flank forces (mesh and squeeze film) exceed
+  :data:`FORCE_SHARE` of the forcing that drives the rattle (the drag ``T_b/r2`` plus the
+  inertial ``m r1 max|θ̈1|``);
+* ``flight``: neither, the gear flies freely under the drive and the drag.
+
+It reports the steps per simulated second, each regime's share and median step, the impacts
+(entries into contact) per second and the steps each impact costs, and the ceiling on the gain
+of any scheme that crosses free flight at no cost: all steps over the contact and film steps.
+Nothing asserts a count.
+
+    python benchmarks/step_regimes.py [--rtol 1e-5] [--json FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import diffrax
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import rattlefit as rf
+from rattlefit.simulation.solve import absolute_tolerances, initial_state
+from rattlefit.testing.results import provenance, write_result
+from rattlefit.testing.shared import operating_points, truth_params
+
+#: The forward comparison's operating points (``benchmarks/run.py``).
+POINTS = (
+    "pairII_boundary_65.0_10pct_8Hz",
+    "pairII_boundary_65.4_20pct_16Hz_runout",
+    "pairII_boundary_65.6_20pct_16Hz",
+    "pairII_dry_65.6_20pct_16Hz",
+    "pairII_oiljet_65.6_20pct_16Hz",
+    "pairI_boundary_66.0_20pct_16Hz",
+    "pairI_oiljet_65.4_20pct_8Hz",
+)
+DURATION, BURN_IN = 3.0, 0.5
+#: A step is in the film regime when the flank forces exceed this share of the rattle's forcing.
+FORCE_SHARE = 0.01
+REGIMES = ("flight", "film", "contact")
+
+
+def accepted_steps(setup, params, rtol: float):
+    """The accepted steps' start times (n,) and states (n, 2) of one simulation, and the
+    solver's accepted and rejected step counts."""
+    lub = (setup.recording.operating.lubrication,)
+    atol = setup.model.state_atol(absolute_tolerances(rtol, lub))
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(setup.model.vector_field),
+        diffrax.Tsit5(),
+        t0=-BURN_IN,
+        t1=DURATION,
+        dt0=1e-5,
+        y0=setup.model.full_state(initial_state(setup.model, params)),
+        args=(params, setup.drive),
+        saveat=diffrax.SaveAt(t0=True, steps=True),
+        stepsize_controller=diffrax.PIDController(
+            rtol=rtol, atol=jnp.asarray(atol), pcoeff=0.3, icoeff=0.4
+        ),
+        max_steps=400_000,
+    )
+    ts, ys = np.asarray(sol.ts), np.asarray(sol.ys)
+    keep = np.isfinite(ts)
+    accepted = int(sol.stats["num_accepted_steps"])
+    rejected = int(sol.stats["num_rejected_steps"])
+    return ts[keep], ys[keep], accepted, rejected
+
+
+def regimes(setup, params, ts, ys) -> np.ndarray:
+    """Each step's regime (index into :data:`REGIMES`) from the state at its start."""
+    model, drive = setup.model, setup.drive
+    f_mesh, f_squeeze = jax.vmap(lambda t, y: model.forces(t, y[0], y[1], params, drive))(
+        jnp.asarray(ts), jnp.asarray(ys)
+    )
+    half = 0.5 * float(params.backlash)
+    gap = half - np.abs(ys[:, 0])
+    forcing = (
+        float(params.drag_torque) / float(model.r2)
+        + float(model.mass) * float(model.r1) * drive.max_acceleration()
+    )
+    flank = np.abs(np.asarray(f_mesh)) + np.abs(np.asarray(f_squeeze))
+    out = np.zeros(len(ts), dtype=int)
+    out[flank > FORCE_SHARE * forcing] = 1
+    out[gap < 0] = 2
+    return out
+
+
+def point_row(name, setup, known, rtol: float) -> dict:
+    """The step census of one operating point's simulation (burn-in excluded)."""
+    params = truth_params(setup, known)
+    ts, ys, accepted, rejected = accepted_steps(setup, params, rtol)
+    kind = regimes(setup, params, ts, ys)
+    recorded = ts[:-1] >= 0.0
+    dt, kind = np.diff(ts)[recorded], kind[:-1][recorded]
+    impacts = int(np.sum((kind[1:] == 2) & (kind[:-1] != 2)))
+    steps = len(dt)
+    share = {r: float(np.mean(kind == i)) for i, r in enumerate(REGIMES)}
+    median_dt = {r: float(np.median(dt[kind == i])) if np.any(kind == i) else None
+                 for i, r in enumerate(REGIMES)}  # fmt: skip
+    near = int(np.sum(kind > 0))
+    return {
+        "steps_per_s": steps / DURATION,
+        "rejected_share": rejected / max(accepted + rejected, 1),
+        "share": share,
+        "median_step_us": {r: (v * 1e6 if v is not None else None) for r, v in median_dt.items()},
+        "impacts_per_s": impacts / DURATION,
+        "near_flank_steps_per_impact": near / impacts if impacts else None,
+        "gain_ceiling_without_flight": steps / near if near else None,
+    }
+
+
+def summary(rows: dict) -> str:
+    """One line on the spread of the regimes' shares and the ceiling."""
+    flight = [r["share"]["flight"] for r in rows.values()]
+    ceiling = [r["gain_ceiling_without_flight"] for r in rows.values() if r[
+        "gain_ceiling_without_flight"]]  # fmt: skip
+    per_impact = [r["near_flank_steps_per_impact"] for r in rows.values() if r[
+        "near_flank_steps_per_impact"]]  # fmt: skip
+    return (
+        f"free flight takes {min(flight):.0%}–{max(flight):.0%} of the steps over "
+        f"{len(rows)} operating points; crossing it at no cost gains at most "
+        f"{min(ceiling):.1f}–{max(ceiling):.1f}×; an impact with its film costs "
+        f"{min(per_impact):.0f}–{max(per_impact):.0f} steps"
+    )
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--rtol", type=float, default=rf.FitOptions().rtol)
+    parser.add_argument("--json", help="write the result file here")
+    args = parser.parse_args(argv)
+    rf.configure(cpu_cores=1)
+    rows = {}
+    for name, setup, known in operating_points(POINTS):
+        rows[name] = point_row(name, setup, known, args.rtol)
+        r = rows[name]
+        print(
+            f"{name}: {r['steps_per_s']:.0f} steps/s; flight {r['share']['flight']:.0%}, "
+            f"film {r['share']['film']:.0%}, contact {r['share']['contact']:.0%}; "
+            f"{r['impacts_per_s']:.0f} impacts/s",
+            file=sys.stderr,
+        )
+    doc = {
+        "order": 2.6,
+        "what": "where a simulation's steps go: free flight, the squeeze film ahead of a "
+        "flank, mesh contact",
+        "summary": summary(rows),
+        "aim": "—",
+        "verdict": "—",
+        "measured": f"one simulation per operating point at its truth (3 s after 0.5 s of "
+        f"burn-in, released at rest on the drive flank), Tsit5 with simulate()'s PID "
+        f"controller at rtol {args.rtol:g} and the fit's absolute tolerances; each accepted "
+        f"step sorted by the state at its start (film: flank forces above "
+        f"{FORCE_SHARE:g} of T_b/r2 + m r1 max|θ̈1|)",
+        "results": {"rtol": args.rtol, "points": rows},
+        **provenance(),
+    }
+    if args.json:
+        write_result(args.json, doc)
+    print(doc["summary"])
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
