@@ -38,6 +38,10 @@ RECIPES: dict[str, tuple[str, float]] = {
     ),
     "campaign.json": ("python benchmarks/campaign_throughput.py", 6),
     "startup.json": ("python benchmarks/startup.py --json benchmarks/results/startup.json", 1),
+    "step_regimes.json": (
+        "python benchmarks/step_regimes.py --json benchmarks/results/step_regimes.json",
+        1,
+    ),
     "identify_time.json": (
         "python benchmarks/identify_time.py --json benchmarks/results/identify_time.json "
         "--cache-json benchmarks/results/compile_cache.json",
