@@ -38,17 +38,8 @@ import rattlefit as rf
 from rattlefit.simulation.solve import absolute_tolerances, initial_state
 from rattlefit.testing.results import provenance, write_result
 from rattlefit.testing.shared import operating_points, truth_params
+from run import FORWARD_POINTS as POINTS  # the forward comparison's operating points
 
-#: The forward comparison's operating points (``benchmarks/run.py``).
-POINTS = (
-    "pairII_boundary_65.0_10pct_8Hz",
-    "pairII_boundary_65.4_20pct_16Hz_runout",
-    "pairII_boundary_65.6_20pct_16Hz",
-    "pairII_dry_65.6_20pct_16Hz",
-    "pairII_oiljet_65.6_20pct_16Hz",
-    "pairI_boundary_66.0_20pct_16Hz",
-    "pairI_oiljet_65.4_20pct_8Hz",
-)
 DURATION, BURN_IN = 3.0, 0.5
 #: A step is in the film regime when the flank forces exceed this share of the rattle's forcing.
 FORCE_SHARE = 0.01
