@@ -19,6 +19,9 @@ each accepted step by the state at its start:
 It reports the steps per simulated second, each regime's share and median step, the impacts
 (entries into contact) per second and the steps each impact costs, and the ceiling on the gain
 of any scheme that crosses free flight at no cost: all steps over the contact and film steps.
+At the first tolerance it also counts the steps (accepted and rejected) of other diffrax
+solvers on the same simulations (:data:`SOLVERS`): a higher and a lower order, and implicit
+ones, which would take fewer steps if the film's damping made the equations stiff.
 Nothing asserts a count.
 
     python benchmarks/step_regimes.py [--rtol 1e-5 1e-4] [--json FILE]
@@ -46,14 +49,15 @@ FORCE_SHARE = 0.01
 REGIMES = ("flight", "film", "contact")
 
 
-def accepted_steps(setup, params, rtol: float):
-    """The accepted steps' start times (n,) and states (n, 2) of one simulation, and the
-    solver's accepted and rejected step counts."""
+def accepted_steps(setup, params, rtol: float, solver=None):
+    """The accepted steps' start times (n,) and states (n, 2) of one simulation with
+    ``solver`` (default Tsit5, :func:`rattlefit.simulate`'s), and its accepted and rejected
+    step counts."""
     lub = (setup.recording.operating.lubrication,)
     atol = setup.model.state_atol(absolute_tolerances(rtol, lub))
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(setup.model.vector_field),
-        diffrax.Tsit5(),
+        solver or diffrax.Tsit5(),
         t0=-BURN_IN,
         t1=DURATION,
         dt0=1e-5,
@@ -64,7 +68,10 @@ def accepted_steps(setup, params, rtol: float):
             rtol=rtol, atol=jnp.asarray(atol), pcoeff=0.3, icoeff=0.4
         ),
         max_steps=400_000,
+        throw=False,
     )
+    if sol.result != diffrax.RESULTS.successful:
+        raise RuntimeError(f"{type(solver).__name__} failed: {sol.result}")
     ts, ys = np.asarray(sol.ts), np.asarray(sol.ys)
     keep = np.isfinite(ts)
     accepted = int(sol.stats["num_accepted_steps"])
@@ -115,6 +122,40 @@ def point_row(name, setup, known, rtol: float) -> dict:
     }
 
 
+#: Other diffrax solvers whose step counts are compared with Tsit5's: a higher order, a lower
+#: order, and implicit ones (which would pay off if the film's damping made the steps stiff).
+SOLVERS = {
+    "Tsit5": diffrax.Tsit5,
+    "Dopri8": diffrax.Dopri8,
+    "Bosh3": diffrax.Bosh3,
+    "Kvaerno3": diffrax.Kvaerno3,
+    "Kvaerno5": diffrax.Kvaerno5,
+}
+
+
+def solver_steps(rtol: float, points) -> dict:
+    """Steps (accepted + rejected) per simulated second of each of :data:`SOLVERS` at each
+    operating point, at ``rtol``."""
+    out = {}
+    for name, setup, known in points:
+        params = truth_params(setup, known)
+        out[name] = {}
+        for label, solver in SOLVERS.items():
+            _, _, accepted, rejected = accepted_steps(setup, params, rtol, solver())
+            out[name][label] = (accepted + rejected) / (DURATION + BURN_IN)
+        print(f"solvers {name}: {out[name]}", file=sys.stderr)
+    return out
+
+
+def solver_summary(steps: dict) -> str:
+    """The range over the operating points of each solver's steps relative to Tsit5's."""
+    parts = []
+    for label in list(SOLVERS)[1:]:
+        ratio = [row[label] / row["Tsit5"] for row in steps.values()]
+        parts.append(f"{label} {min(ratio):.1f}–{max(ratio):.1f}×")
+    return "steps against Tsit5's: " + ", ".join(parts)
+
+
 def summary(rows: dict) -> str:
     """One line on the spread of the regimes' shares and the ceiling."""
     flight = [r["share"]["flight"] for r in rows.values()]
@@ -159,11 +200,12 @@ def main(argv=None) -> int:
     points = operating_points(POINTS)
     by_rtol = {f"{rtol:g}": census(rtol, points) for rtol in args.rtol}
     first = f"{args.rtol[0]:g}"
+    solvers = solver_steps(args.rtol[0], points)
     doc = {
         "order": 2.6,
         "what": "where a simulation's steps go: free flight, the squeeze film ahead of a "
         "flank, mesh contact",
-        "summary": f"at rtol {first}: " + summary(by_rtol[first]),
+        "summary": f"at rtol {first}: " + summary(by_rtol[first]) + "; " + solver_summary(solvers),
         "aim": "—",
         "verdict": "—",
         "measured": "one simulation per operating point at its truth (3 s after 0.5 s of "
