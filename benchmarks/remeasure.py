@@ -40,7 +40,7 @@ RECIPES: dict[str, tuple[str, float]] = {
     "startup.json": ("python benchmarks/startup.py --json benchmarks/results/startup.json", 1),
     "step_regimes.json": (
         "python benchmarks/step_regimes.py --json benchmarks/results/step_regimes.json",
-        1,
+        3,
     ),
     "identify_time.json": (
         "python benchmarks/identify_time.py --json benchmarks/results/identify_time.json "
