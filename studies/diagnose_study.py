@@ -9,9 +9,9 @@ from ``--validation-dir``; made once from a seed drawn after its method was comm
 scored only by a checkout whose package and scoring equal that method commit, which its
 ``manifest.json`` names; ``--unfrozen`` scores it anyway and labels the result so; the
 manifest's hash is kept in the result).
-Each case lists the verdicts that count as right: ``none`` or ``unexplained`` for a clean
-recording, the effect (or, for dissipation in contact, any of the dissipative candidates)
-otherwise.
+Each case lists the verdicts that count as right: ``none``, ``unexplained`` or
+``model_form`` for a clean recording, the effect (or, for dissipation in contact, any of the
+dissipative candidates) otherwise.
 
     python studies/diagnose_study.py [--sets shared,clean,injected,validation] [--full]
                                         [--validation-dir DIR]
@@ -62,7 +62,7 @@ from validation.diagnose_sets import DISSIPATION, clean_set, injected_set
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = recordings_dir(REPO)
-CLEAN = ("none", "unexplained")
+CLEAN = ("none", "unexplained", "model_form")
 #: The shared truth's effect names, as the verdicts that count as right.
 SHARED_EXPECTED = {"runout": ("runout",), "sliding_friction": DISSIPATION}
 FAMILY = 0.01  # the diagnosis' default family-wise level
@@ -239,7 +239,8 @@ def run_cases(cases: list[dict], full: bool, cases_dir: Path | None, say) -> lis
 
 
 def is_clean(case: dict) -> bool:
-    """The case holds no effect: its acceptable verdicts are ``none`` or ``unexplained``."""
+    """The case holds no effect: its acceptable verdicts are ``none``, ``unexplained`` or
+    ``model_form``."""
     return set(case["expected"]) <= set(CLEAN)
 
 

@@ -221,25 +221,34 @@ def _one_candidate_diagnosis(outcome: EffectOutcome) -> Diagnosis:
 
 
 @pytest.mark.parametrize(
-    ("chi2_with", "p_after", "named"),
+    ("chi2_with", "p_after", "kind"),
     [
-        (30.0, 0.3, True),  # leaves noise
-        (103.5, 6.7e-11, True),  # closes 99.9 % of a vast gap: the remainder is the refit's
-        (2000.0, 1e-300, True),  # closes 97 %
-        (10000.0, 1e-300, False),  # closes 83 % and leaves far more than noise
-        (30000.0, 1e-300, False),  # closes half
+        (30.0, 0.3, "effect"),  # leaves noise
+        (2000.0, 0.02, "effect"),  # a large χ², yet within the model's simulated null
+        (103.5, 6.7e-11, "model_form"),  # closes 99.9 % of a vast gap, but not to noise
+        (2000.0, 1e-300, "model_form"),  # closes 97 %
+        (10000.0, 1e-300, "unexplained"),  # closes 83 % and leaves far more than noise
+        (30000.0, 1e-300, "unexplained"),  # closes half
     ],
 )
-def test_a_band_candidate_explains_the_gap_when_it_leaves_noise_or_closes_most_of_it(
-    chi2_with, p_after, named
-):
+def test_a_band_candidate_is_named_only_when_it_closes_the_gap_to_noise(chi2_with, p_after, kind):
+    # closure: what the candidate leaves must be consistent with the model's own null; one
+    # that nearly closes the gap (CLOSES_MOST) but leaves a significant rest makes the gap a
+    # model-form difference, reported with it as the nearest effect and never named
     outcome = _outcome("flank_friction", 59019.5, chi2_with, p_after)
     diag = _one_candidate_diagnosis(outcome)
     assert diag.band_gap
+    named = kind == "effect"
     assert (diag.verdict.explaining is outcome) == named
-    assert diag.verdict.kind == ("effect" if named else "unexplained")
+    assert diag.verdict.kind == kind
     assert diag.verdict.effects == (("flank_friction",) if named else ())
-    assert ("significant rest" in verdict_sentence(diag)) == (named and p_after < 0.01)
+    assert (diag.verdict.nearest is outcome) == (not named)
+    sentence = verdict_sentence(diag)
+    assert ("model-form difference" in sentence) == (kind == "model_form"), sentence
+    if kind == "model_form":
+        assert "flank_friction" in sentence and "not named as the cause" in sentence, sentence
+        assert f"{100 * outcome.gap_closed:.0f} %" in sentence, sentence
+    assert diag.to_json()["nearest"] == (None if named else "flank_friction")
 
 
 @pytest.mark.parametrize(("chi2_with", "caveated"), [(30.0, False), (2425.0, True)])
@@ -265,8 +274,10 @@ def test_a_named_size_is_a_95_percent_interval_only_where_its_candidate_leaves_n
     outcome = dataclasses.replace(outcome, interval_caveat=caveat)
     diag = _one_candidate_diagnosis(outcome)
     sentence = verdict_sentence(diag)
+    # a candidate that leaves a significant misfit is not named: no interval of its size is
+    # claimed, in the verdict or in the table
     assert ("95 %: 0.42–0.52" in sentence) != caveated, sentence
-    assert ("the fit's precision" in sentence) == caveated, sentence
+    assert diag.verdict.kind == ("model_form" if caveated else "effect"), sentence
     assert ("2425.0 on 27 dof" in format_diagnosis(diag)) == caveated
     assert json.loads(json.dumps(outcome.as_dict()))["interval_caveat"] == caveat
 
@@ -283,7 +294,8 @@ def test_an_effect_whose_simulation_fails_is_a_failed_outcome_not_a_verdict(monk
     base, _ = build_problem([rec], FitOptions.quick(), np.random.default_rng(BUILD_SEED))
     problem, candidates = candidate_problem(base, ("pitch_point_friction",))
     trial = Trial(problem, None, np.asarray(base.data), np.zeros((1, 3, 2)), 28, 0, [], candidates)
-    monkeypatch.setattr(trial_module, "final_chi2", lambda trial, z: (float("nan"), None))
+    monkeypatch.setattr(trial_module, "fresh_features", lambda trial, zs, y0=None: [None])
+    monkeypatch.setattr(trial_module, "final_chi2", lambda trial, z, f: (float("nan"), None))
     z = np.zeros(len(problem.specs))
     failed = judge_effect(trial, "pitch_point_friction", 59.7, z, 0.01)
     assert failed.failure and not failed.supported and failed.gap_closed == 0.0
@@ -485,8 +497,14 @@ def test_the_size_interval_is_where_the_profile_rises_by_the_threshold(monkeypat
         t = [np.log10(float(spec.value(z[i])) / 0.05) for z in zs]
         return chi2_min + k * np.square(t)
 
+    def misfits(chi2_min, accept, trial, zs, dof):
+        chi2 = rising(chi2_min, trial, zs)
+        sizes = np.array([float(spec.value(z[i])) for z in zs])
+        return chi2, np.isclose(sizes, accept) if accept else np.zeros(len(zs), bool)
+
     for chi2_min in (20.0, 2.0 * 27):  # within the dof, then twice what is left
-        monkeypatch.setattr(size_module, "chi2s", functools.partial(rising, chi2_min))
+        rule = functools.partial(misfits, chi2_min, None)
+        monkeypatch.setattr(size_module, "profiled_misfits", rule)
         intervals = size_module.size_intervals(trial, "flank_friction", z_fit, chi2_min)
         ((best, lo, hi),) = intervals.values()
         assert best == pytest.approx(0.05)
@@ -495,6 +513,12 @@ def test_the_size_interval_is_where_the_profile_rises_by_the_threshold(monkeypat
         half = np.sqrt(profile_threshold(noise) * scale / k)  # decades
         assert np.log10(hi / 0.05) == pytest.approx(half, rel=1e-9)
         assert np.log10(0.05 / lo) == pytest.approx(half, rel=1e-9)
+    # a size half a decade below, where the χ² rises by 25 but the model's own null does not
+    # reject it (the spread there is wider than at the fit): the interval reaches it
+    accept = 0.05 * 10**-0.5
+    monkeypatch.setattr(size_module, "profiled_misfits", functools.partial(misfits, 20.0, accept))
+    ((_, lo, hi),) = size_module.size_intervals(trial, "flank_friction", z_fit, 20.0).values()
+    assert lo == pytest.approx(accept) and np.log10(hi / 0.05) < 0.5
 
 
 @pytest.mark.parametrize(("flat", "relevant"), [(False, True), (True, False)])
@@ -517,12 +541,13 @@ def test_a_size_the_profile_cannot_tell_from_none_is_not_relevant(monkeypatch, f
     monkeypatch.setattr(size_module, "polish_profile", lambda rows, zs, *a, **kw: zs)
     profiled = []
 
-    def chi2s(trial, zs):
+    def misfits(trial, zs, dof):
         t = np.array([np.log10(float(spec.value(z[i])) / 0.05) for z in zs])
         profiled.extend(10.0**t * 0.05)
-        return 20.0 + 100.0 * np.square(np.maximum(t, 0.0) if flat else t)
+        chi2 = 20.0 + 100.0 * np.square(np.maximum(t, 0.0) if flat else t)
+        return chi2, np.zeros(len(zs), bool)
 
-    monkeypatch.setattr(size_module, "chi2s", chi2s)
+    monkeypatch.setattr(size_module, "profiled_misfits", misfits)
     intervals = {
         k: (lo, hi)
         for k, (_, lo, hi) in size_module.size_intervals(
@@ -931,3 +956,46 @@ def test_a_candidate_of_another_mechanism_that_closes_the_gap_as_well_is_a_rival
     )
     with_pair = _diagnosis_of([drag, pair, damping], 60.4)
     assert with_pair.verdict.label == "speed_dependent_drag"
+
+
+@pytest.mark.parametrize("spread", [1.0, 2.0])
+def test_the_misfit_null_is_the_chi2_of_recordings_the_model_makes(monkeypatch, spread):
+    # Gaussian band features with the model's σ exact (spread 1) or twice what the noise model
+    # says (spread 2, as nearly deterministic rattle underestimates it): the null's χ² is
+    # then spread² · χ²₂₈ (closed form; the fresh mean's error adds a share 1/M), and a misfit
+    # at χ²₂₈'s 99 % point is rejected at about 1 % only where σ is exact.
+    from types import SimpleNamespace
+
+    from scipy import stats
+
+    from rattlefit.diagnosis import trial as trial_module
+
+    bands, fresh_n, null_n = 28, 400, 4000
+    rng = np.random.default_rng(7)
+    draws = {
+        None: rng.normal(0.0, spread, (1, 1, fresh_n, bands)),
+        "null": rng.normal(0.0, spread, (1, 1, null_n, bands)),
+    }
+    problem = SimpleNamespace(
+        n_bands=bands, recording_regime=False, regime_threshold=None, sigma=np.ones((1, bands))
+    )
+    noise = SimpleNamespace(whiten=np.eye(bands))
+    trial = Trial(
+        problem, noise, np.zeros((1, bands)), None, bands, 0, [], {}, null_y0=np.zeros((1, 1, 2))
+    )
+    monkeypatch.setattr(
+        trial_module, "fresh_features", lambda t, zs, y0=None: draws[None if y0 is None else "null"]
+    )
+    null = trial_module.misfit_null(trial, np.zeros(1))
+    assert null.shape == (null_n,)
+    expected = spread**2 * bands * (1 + 1 / fresh_n)
+    assert np.mean(null) == pytest.approx(expected, rel=0.03)
+    assert np.var(null) == pytest.approx(2 * spread**4 * bands, rel=0.15)
+    at_99 = float(stats.chi2.ppf(0.99, bands))
+    p = trial_module.misfit_p(trial, np.zeros(1), at_99, bands)
+    if spread == 1.0:
+        assert 0.003 < p < 0.03, p
+    else:
+        assert p > 0.3, p  # the χ² tail would reject it at 1 %
+    tail = dataclasses.replace(trial, null_y0=None)
+    assert trial_module.misfit_p(tail, np.zeros(1), at_99, bands) == pytest.approx(0.01)

@@ -40,7 +40,7 @@ def test_the_sets_are_deterministic_and_large_enough():
             assert {"a_mm", "drag_torque_Nm", "viscosity_Pa_s", "unmodelled_effects"} <= set(entry)
             assert entry["expected"] and entry["form"]
     clean = ds.truth_entries("clean")
-    assert all(e["expected"] == ["none", "unexplained"] for e in clean.values())
+    assert all(e["expected"] == ["none", "unexplained", "model_form"] for e in clean.values())
     assert all(not e["unmodelled_effects"] for e in clean.values())
     solvers = {e["model"]["solver"] for e in clean.values()}
     assert solvers == {"reference", "smoothed"}

@@ -232,4 +232,4 @@ def test_the_set_plan_is_half_clean_and_names_its_verdicts():
     rng = np.random.default_rng(0)
     effects = [validation_set.drawn_effect(k, rng, PAIR) for k in ("flex", "runout_pinion")]
     assert validation_set.expected(effects) == ["shaft_compliance+runout", "shaft_inertia+runout"]
-    assert validation_set.expected(()) == ["none", "unexplained"]
+    assert validation_set.expected(()) == ["none", "unexplained", "model_form"]

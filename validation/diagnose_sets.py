@@ -11,7 +11,7 @@ fixed seeds and cached under ``$RATTLEFIT_DIAGNOSE_SETS/<set>/`` (default
   another law than the commanded sine (a lag and an amplitude error of the motor, a second
   harmonic of the speed) while ``/operating`` states the command; the mesh-stiffness shape
   C_a, the film saturation h_min and the stiffness scale are off their defaults. Every
-  recording's acceptable verdicts are ``none`` and ``unexplained``.
+  recording's acceptable verdicts are ``none``, ``unexplained`` and ``model_form``.
 * ``injected`` — rattlefit's smoothed simulator with one effect (two in two recordings)
   written in another form than the catalogue candidate meant to find it (the classes below:
   Hunt–Crossley contact damping, Coulomb friction with another regularisation or a Stribeck
@@ -82,7 +82,7 @@ MEAN_SPEED = 52.36
 #: Film half-length a of each lubrication, m (the shared truth's).
 FILM = {"dry": 0.0, "boundary": 0.085e-3, "oil_jet": 1.0e-3}
 #: Acceptable verdicts of a recording without an unmodelled effect.
-CLEAN = ("none", "unexplained")
+CLEAN = ("none", "unexplained", "model_form")
 #: The catalogue's candidates for dissipation in contact: any of them names it rightly.
 DISSIPATION = tuple(n for n in EFFECTS if mechanism_of(n) == "dissipation in contact")
 #: Impact speed at which a speed-dependent restitution is stated, m/s: the median contact-onset

@@ -39,4 +39,4 @@ class DocumentFormat:
 
 FIT = DocumentFormat("rattlefit.fit", 2, "identify")
 POSTERIOR = DocumentFormat("rattlefit.posterior", 1, "sample")
-DIAGNOSIS = DocumentFormat("rattlefit.diagnosis", 2, "diagnose")
+DIAGNOSIS = DocumentFormat("rattlefit.diagnosis", 3, "diagnose")

@@ -85,7 +85,7 @@ FREQUENCIES = (4, 6, 8, 10, 12, 14, 16)
 COUNTS, RATE = 40_000, 10_000.0
 #: Stated standard uncertainty of the angular backlash, and the true error's spread, rad.
 BACKLASH_STD, BACKLASH_ERROR = 2e-4, 1e-4
-CLEAN = ("none", "unexplained")
+CLEAN = ("none", "unexplained", "model_form")
 #: Largest ratio of inertial forcing to drag at the speed-dependent-drag cases' points.
 DRAG_FORCING = 5.0
 LUBRICATIONS = ("dry", "boundary", "oil_jet")

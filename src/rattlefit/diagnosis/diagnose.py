@@ -60,7 +60,6 @@ import time
 from collections.abc import Callable, Sequence
 
 import numpy as np
-from scipy import stats
 
 from ..errors import RattlefitError
 from ..inference.identify import identify
@@ -96,7 +95,9 @@ from .trial import (
     costs,
     dry_films,
     final_chi2,
+    fresh_features,
     judge_effect,
+    misfit_p,
     moves,
     refit,
     refit_all,
@@ -113,6 +114,8 @@ from .verdict import Evidence, decide
 FINAL_FACTOR = 2
 #: Each candidate is fitted from this many of its screening's best starts.
 CANDIDATE_STARTS = 2
+#: Recordings of the model behind a band misfit's null (``DiagnoseOptions.misfit_null``).
+MISFIT_NULL_REALISATIONS = 32
 
 
 @dataclasses.dataclass(frozen=True)
@@ -137,6 +140,9 @@ class DiagnoseOptions:
     null_realisations : recordings of the fitted model without effects that give the
         encoder tests' null where one of them finds a pattern
         (:mod:`rattlefit.diagnosis.null`); 0 judges them by their decoys alone.
+    misfit_null : recordings of the model at each point judged that give the band misfit's
+        null (:func:`~rattlefit.diagnosis.trial.misfit_null`): the gap's p and every
+        candidate's ``p_after``; 0 refers them to the χ² tail instead.
     every_effect : fit every effect to the band spectrum, also those the encoders show no
         sign of and when the model without effects fits within its noise (by default they
         are skipped: they could not be named).
@@ -150,6 +156,7 @@ class DiagnoseOptions:
     significance: float = SIGNIFICANCE
     every_effect: bool = False
     null_realisations: int = NULL_REALISATIONS
+    misfit_null: int = MISFIT_NULL_REALISATIONS
 
     def __post_init__(self):
         for name in self.effects:
@@ -160,6 +167,11 @@ class DiagnoseOptions:
             raise RattlefitError(
                 "DiagnoseOptions.null_realisations must be 0 (decoys alone) or ≥ 8, got "
                 f"{self.null_realisations}"
+            )
+        if self.misfit_null != 0 and self.misfit_null < 8:
+            raise RattlefitError(
+                "DiagnoseOptions.misfit_null must be 0 (the χ² tail) or ≥ 8, got "
+                f"{self.misfit_null}"
             )
 
 
@@ -248,11 +260,17 @@ def trial_of(
     fit_options = baseline.state.options
     n_validation = fit_options.n_covariance_realisations
     n_final = options.n_final or FINAL_FACTOR * n_validation
-    s_final, s_validation = np.random.SeedSequence(fit_options.seed).spawn(2)  # null: third
+    # children 0 and 1: the final and validation states; 2: the encoder null; 3: the misfit's
+    s_final, s_validation, _, s_null = np.random.SeedSequence(fit_options.seed).spawn(4)
     y0 = release_states(base, baseline.state.z, n_final, np.random.default_rng(s_final))
     validation = release_states(
         base, baseline.state.z, n_validation, np.random.default_rng(s_validation)
     )
+    null_y0 = None
+    if options.misfit_null:
+        null_y0 = release_states(
+            base, baseline.state.z, options.misfit_null, np.random.default_rng(s_null)
+        )
     dry = dry_films(base, recordings)
     nuisances = [i for i, sp in enumerate(base.specs) if sp.nuisance]
     return Trial(
@@ -267,6 +285,7 @@ def trial_of(
         dry,
         options.base_iterations,
         validation,
+        null_y0,
     )
 
 
@@ -482,19 +501,28 @@ def simulated_null(found, recordings, baseline: FitResult, options: DiagnoseOpti
 
 def base_model(trial: Trial, baseline: FitResult, say):
     """The model without effects re-fitted (:func:`refit_without_effects`) from
-    ``baseline``: its point, its χ² on the fresh realisations, the identification's cost and
-    the re-fit's, and the warnings about the identification."""
+    ``baseline``: its point, its χ² on the fresh realisations with that χ²'s p under the
+    model's simulated null (:func:`~rattlefit.diagnosis.trial.misfit_p`), the
+    identification's cost and the re-fit's, and the warnings about the identification."""
     z_absent = trial.dried(
         np.concatenate(
             [baseline.state.z, np.full(len(trial.problem.specs) - len(baseline.state.z), -Z_END)]
         )
     )
     z_base, cost_identified, refit_cost = refit_without_effects(trial, z_absent, say)
-    chi2_without, _ = final_chi2(trial, z_base)
+    fresh = fresh_features(trial, z_base[None])[0]
+    chi2_without, _ = final_chi2(trial, z_base, fresh)
+    gap_p = misfit_p(trial, z_base, chi2_without, trial.dof, fresh)
+    against = (
+        "the χ² tail"
+        if trial.null_y0 is None
+        else f"{trial.null_y0.shape[1]} simulated recordings of the model"
+    )
+    say(f"  χ² without effects {chi2_without:.1f} on {trial.dof}: p = {gap_p:.2g} by {against}")
     caveats = baseline_caveats(baseline.statistics.success, cost_identified, refit_cost)
     for c in caveats:
         say(f"  caveat: {c.value.replace('_', ' ')}")
-    return z_base, chi2_without, (cost_identified, refit_cost), caveats
+    return z_base, (chi2_without, gap_p), (cost_identified, refit_cost), caveats
 
 
 def diagnose(
@@ -528,9 +556,9 @@ def diagnose(
         in_program(options.effects, seen, options.every_effect),
         candidate_static(found),
     )
-    z_base, chi2_without, refit_costs, warnings = base_model(trial, baseline, say)
+    z_base, (chi2_without, gap_p), refit_costs, warnings = base_model(trial, baseline, say)
     cycle = drive_cycle(trial, z_base, recordings, baseline, options.significance, say)
-    gap = misses(stats.chi2.sf(chi2_without, trial.dof), options.significance)
+    gap = misses(gap_p, options.significance)
     tried, skipped = effects_to_try(options.effects, seen, gap, options.every_effect)
     for name, why in skipped.items():
         say(f"not fitting {name}: {why}")
@@ -561,6 +589,7 @@ def diagnose(
         findings=tuple(found),
         significance=options.significance,
         chi2_without=chi2_without,
+        gap_p=gap_p,
         skipped=skipped,
         platform=platform,
         drive_cycle=cycle,

@@ -23,8 +23,11 @@ class EffectOutcome:
     noise_threshold : Monte Carlo noise of a χ² difference (95 % one-sided).
     supported : ``p_value`` < the significance over the number of effects tried, and
         ``delta_chi2`` > ``noise_threshold``.
-    p_after : probability of a χ² at least ``chi2_with`` from noise alone (dof less the
-        effect's fields): small when the effect leaves a significant misfit.
+    p_after : probability of a χ² at least ``chi2_with`` from the model with the effect at
+        its fitted point, by that model's simulated null
+        (:func:`~rattlefit.diagnosis.trial.misfit_p`; the χ² tail on the dof less the
+        effect's fields where the null is not simulated): small when the effect leaves a
+        significant misfit.
     moves : how the free parameters move once the effect is in: name → (without, with), SI.
     residuals : (R, B) standardised band residuals with the effect.
     failure : why the effect could not be judged (its simulation failed at the fitted

@@ -61,10 +61,9 @@ COVERED_P = 0.05
 #: model-free tests and the effects fitted are each held to it over their number
 #: (Bonferroni).
 SIGNIFICANCE = 0.01
-#: A supported candidate that removes at least this share of the excess band misfit explains
-#: the band gap even when what it leaves is still significant: the diagnosis re-fits only a,
-#: T_b and the effect's size, with the other parameters held where the identification put
-#: them, so a right effect can leave a remainder.
+#: When no candidate closes the band gap to noise, the nearest one removing at least this share
+#: of the excess misfit makes the verdict a model-form difference (the gap has nearly that
+#: effect's form) rather than an unexplained gap; it is never named.
 CLOSES_MOST = 0.9
 #: An effect named from the band spectrum must have the lower end of its size's 95 %
 #: interval at least this share of its typical size (``Effect.typical``).

@@ -37,6 +37,9 @@ class Diagnosis:
     #: χ² of the model without effects after the re-fit, on the fresh realisations of the
     #: effects' comparison (NaN: not measured; the identification's χ² is used instead)
     chi2_without: float = float("nan")
+    #: p of :attr:`chi2_without` under the model without effects' simulated null
+    #: (:func:`~rattlefit.diagnosis.trial.misfit_p`; NaN: the χ² tail on the dof instead)
+    gap_p: float = float("nan")
     #: effects not fitted to the band spectrum, and why
     skipped: dict[str, Skipped] = dataclasses.field(default_factory=dict)
     #: what a seeded result depends on (:func:`~rattlefit.reproducibility.platform_info`),
@@ -71,11 +74,13 @@ class Diagnosis:
     @property
     def gap_chi2(self) -> tuple[float, int, float]:
         """χ², dof and p of the model without extra effects: after the re-fit, on the fresh
-        realisations every effect is judged on (the identification's own when not
-        measured)."""
+        realisations every effect is judged on, p under its simulated null (:attr:`gap_p`;
+        the χ² tail where that was not simulated); the identification's own when not
+        measured."""
         dof = self.baseline.statistics.dof
         if np.isfinite(self.chi2_without):
-            return self.chi2_without, dof, float(stats.chi2.sf(self.chi2_without, dof))
+            p = self.gap_p if np.isfinite(self.gap_p) else stats.chi2.sf(self.chi2_without, dof)
+            return self.chi2_without, dof, float(p)
         return self.baseline.statistics.chi2, dof, self.baseline.statistics.p_value
 
     @property
@@ -105,8 +110,12 @@ class Diagnosis:
             "verdict_kind": v.kind,
             "verdict_effects": list(v.effects),
             "band_gap": v.band_gap,
-            "gap_chi2": dict(zip(("chi2", "dof", "p_value"), self.gap_chi2, strict=True)),
+            "gap_chi2": {
+                **dict(zip(("chi2", "dof", "p_value"), self.gap_chi2, strict=True)),
+                "p_from": "simulated null" if np.isfinite(self.gap_p) else "chi2 tail",
+            },
             "band_gap_explained": v.band_gap_explained,
+            "nearest": None if v.nearest is None else v.nearest.name,
             "indistinguishable": [o.name for o in v.indistinguishable],
             "verdict_contradicted": list(v.contradicted),
             "significance": self.significance,

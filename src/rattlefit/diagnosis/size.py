@@ -7,7 +7,12 @@ is measured on the fresh realisations of the diagnosis' comparison. The 95 % int
 the sizes whose χ² rise stays below :func:`~rattlefit.inference.profile.profile_threshold`
 (χ²₁'s quantile plus the Monte Carlo noise of a difference of two χ²s), after scaling the
 rise by the misfit per degree of freedom that remains where it exceeds one (as the F-test
-does); the crossing is interpolated in the square root of the rise.
+does); the crossing is interpolated in the square root of the rise. Where the trial simulates
+the misfit's null, the interval also spans every profiled size at which the model with the
+effect is not rejected by its own null (:func:`~rattlefit.diagnosis.trial.misfit_p` at least
+:data:`ACCEPT_P`; the inversion of that test): in nearly deterministic rattle the band spread
+changes with the size, and the χ² rise at the identification's spread is then no likelihood
+ratio.
 
 The profile also holds the size's absent end and its *relevance floor*,
 :data:`~.policy.RELEVANT_SHARE` of the effect's typical size (``Effect.typical``, a physical
@@ -26,11 +31,22 @@ import numpy as np
 from ..inference.profile import polish_profile, profile_interval, profile_threshold
 from ..physics.effects import effect_class
 from .policy import RELEVANT_SHARE, effects_of
-from .trial import Trial, chi2s, difference_sd, field_key, refit_steps, residual_rows
+from .trial import (
+    Trial,
+    difference_sd,
+    field_key,
+    final_chi2,
+    fresh_features,
+    misfit_p,
+    refit_steps,
+    residual_rows,
+)
 
 #: Where the size is profiled: decades off its fitted value (clipped to its range); close
 #: in, since a size the band spectrum pins can be pinned to a few per cent.
 SIZE_DECADES = (-1.0, -0.5, -0.2, -0.07, 0.07, 0.2, 0.5, 1.0)
+#: A profiled size whose model the misfit's null does not reject at this p is in the interval.
+ACCEPT_P = 0.05
 
 
 def relevance_floor(effect: str) -> float:
@@ -74,11 +90,11 @@ def size_interval(
         refit_steps(trial, points),
         iterations=trial.iterations,
     )
-    chi2 = np.append(chi2s(trial, polished), chi2_fit)
-    chi2 = np.where(np.isfinite(chi2), chi2, np.inf)
+    dof = max(trial.dof - len(trial.fields(name)), 1)
+    chi2, accepted = profiled_misfits(trial, polished, dof)
+    chi2 = np.where(np.isfinite(np.append(chi2, chi2_fit)), np.append(chi2, chi2_fit), np.inf)
     logs = np.append(logs, math.log10(float(spec.value(z_fit[i]))))
     best = float(np.min(chi2))
-    dof = max(trial.dof - len(trial.fields(name)), 1)
     scale = max(1.0, best / dof)  # the misfit left, per degree of freedom
     noise_sd = difference_sd(trial, best, best, dof) / scale
     # the square root of the rise is linear in the size near a quadratic minimum, so the
@@ -86,7 +102,25 @@ def size_interval(
     root = np.sqrt(np.maximum(chi2 - best, 0.0) / scale)
     profile = {float(t): (float(r), None) for t, r in zip(logs, root, strict=True)}
     (lo, hi), _ = profile_interval(profile, math.sqrt(profile_threshold(noise_sd)))
+    spanned = logs[:-1][accepted]
+    if spanned.size:
+        lo, hi = min(lo, float(spanned.min())), max(hi, float(spanned.max()))
     return 10.0 ** logs[int(np.argmin(chi2))], 10.0**lo, 10.0**hi
+
+
+def profiled_misfits(trial: Trial, points, dof: int) -> tuple[np.ndarray, np.ndarray]:
+    """χ² (K,) of the data rows at each profiled point ``points`` (K, P) on the fresh
+    realisations, and whether the misfit's simulated null accepts each (p ≥
+    :data:`ACCEPT_P`; all False when the trial simulates no null)."""
+    fresh = fresh_features(trial, points)
+    chi2 = np.array([final_chi2(trial, z, f)[0] for z, f in zip(points, fresh, strict=True)])
+    if trial.null_y0 is None:
+        return chi2, np.zeros(len(points), dtype=bool)
+    p = [
+        misfit_p(trial, z, c, dof, f) if np.isfinite(c) else 0.0
+        for z, c, f in zip(points, chi2, fresh, strict=True)
+    ]
+    return chi2, np.asarray(p) >= ACCEPT_P
 
 
 def size_intervals(trial: Trial, name: str, z_fit, chi2_fit: float) -> dict[str, tuple]:

@@ -4,8 +4,22 @@ A :class:`Trial` is the identification's problem with every candidate effect add
 absent end — one compiled program, so that the model without effects and each effect's fit
 are simulated on the same realisations — with the identification's noise model and the
 fresh release states of the out-of-sample comparison. The functions here cost points of
-that problem (:func:`costs`), re-fit a few coordinates (:func:`refit`), and judge a fitted
-effect against the model without effects (:func:`judge_effect`).
+that problem (:func:`costs`), re-fit a few coordinates (:func:`refit`), refer a band misfit to
+the fitted model's own simulated null (:func:`misfit_p`), and judge a fitted effect against
+the model without effects (:func:`judge_effect`).
+
+**The misfit's null.** A band χ² is referred to χ² on its degrees of freedom only where the
+band spread and its correlations are exact and the features Gaussian. Nearly deterministic
+rattle breaks both: on dry flanks or in a periodic orbit the spread estimated at the
+identification's optimum is far from the spread at another point, and realisations switch
+between regimes. So the null is simulated: one recording of the model at the point judged per
+release state of ``Trial.null_y0`` (the recordings' drive, dither and encoders), each scored
+exactly as the recording is — its band χ² against the mean of the comparison's fresh
+realisations in its own regime, whitened by the identification's noise model
+(:func:`misfit_null`) — and the recording's χ² is set against these by
+:func:`~rattlefit.diagnosis.null.null_p` (:func:`misfit_p`). The recording's χ² is taken at a
+fitted point and the null's are not, so the null is a little larger than that of a re-fitted
+recording: a misfit is rejected a little less often than the level says.
 """
 
 from __future__ import annotations
@@ -19,6 +33,7 @@ import numpy as np
 from scipy import stats
 
 from ..confidence import Z95_ONE_SIDED
+from ..features.ensemble import regime_weights, weighted_mean
 from ..inference.profile import polish_profile
 from ..io.recording import Recording
 from ..likelihood.noise import NoiseModel
@@ -26,6 +41,7 @@ from ..physics.effects import absent, effect_class
 from ..problem.forward import evaluate
 from ..problem.parameters import Z_END, ParameterSpec
 from ..problem.problem import Problem
+from .null import null_p
 from .outcome import EffectOutcome, gap_closed
 from .policy import effects_of, is_pair
 
@@ -58,6 +74,8 @@ class Trial:
         that is in the contact).
     base_iterations : most Gauss–Newton iterations of the re-fit without effects over the
         nuisances (:func:`settled_path`).
+    null_y0 : release states (R, n, 2) of the misfit's simulated null (:func:`misfit_null`);
+        None refers misfits to the χ² tail instead.
     """
 
     problem: Problem
@@ -71,6 +89,7 @@ class Trial:
     dry: list[int] = dataclasses.field(default_factory=list)
     base_iterations: int = 12
     validation: np.ndarray | None = None
+    null_y0: np.ndarray | None = None
 
     def dried(self, zs: np.ndarray) -> np.ndarray:
         """``zs`` (…, P) with the dry recordings' film half-lengths at their dry end."""
@@ -91,10 +110,16 @@ class Trial:
         return sorted(set(self.dry + (self.nuisances if nuisances else []) + others))
 
 
+def whitened(trial: Trial, observed, mean) -> np.ndarray:
+    """Band features ``observed`` (R, B) against the mean features ``mean`` (R, B), whitened
+    by the identification's noise model: (R·B,)."""
+    sigma = np.asarray(trial.problem.sigma)
+    return trial.noise.whiten @ ((np.asarray(observed) - mean) / sigma).reshape(-1)
+
+
 def whitened_rows(trial: Trial, mean: np.ndarray) -> np.ndarray:
     """The identification's whitened data rows for mean features ``mean`` (R, B)."""
-    sigma = np.asarray(trial.problem.sigma)
-    return trial.noise.whiten @ ((trial.data - mean) / sigma).reshape(-1)
+    return whitened(trial, trial.data, mean)
 
 
 def residual_rows(trial: Trial, zs, realisations=None) -> np.ndarray:
@@ -196,10 +221,43 @@ def validated(trial: Trial, zs) -> tuple[int, np.ndarray]:
     return int(np.argmin(values)), values
 
 
-def final_chi2(trial: Trial, z) -> tuple[float, np.ndarray]:
-    """χ² of the data rows at ``z`` on the fresh release states, and the mean features."""
-    mean = fresh_means(trial, np.asarray(z)[None])[0]
+def final_chi2(trial: Trial, z, fresh=None) -> tuple[float, np.ndarray]:
+    """χ² of the data rows at ``z`` on the fresh release states, and the mean features;
+    ``fresh`` (R, M, B) are the fresh realisations' features at ``z`` if already simulated."""
+    if fresh is None:
+        fresh = fresh_features(trial, np.asarray(z)[None])[0]
+    mean = np.asarray(trial.problem.mean_of(np.asarray(fresh)))
     return float(np.sum(whitened_rows(trial, mean) ** 2)), mean
+
+
+def misfit_null(trial: Trial, z, fresh=None) -> np.ndarray:
+    """χ² (n,) of the null recordings of the model at ``z`` (P,), one per release state of
+    ``trial.null_y0`` (R, n, 2), each against the mean of the fresh realisations ``fresh``
+    (R, M, B; simulated when None) in the regime that recording is in (module docstring)."""
+    problem = trial.problem
+    zs = np.asarray(z, dtype=float)[None]
+    fresh = np.asarray(fresh_features(trial, zs)[0] if fresh is None else fresh)
+    null = np.asarray(fresh_features(trial, zs, trial.null_y0)[0])
+    nb = problem.n_bands
+    out = []
+    for m in range(null.shape[1]):
+        target = null[:, m, :nb] if problem.recording_regime else None
+        weights = regime_weights(fresh[..., :nb], problem.regime_threshold, target=target)
+        mean = weighted_mean(fresh, np.asarray(weights))
+        out.append(float(np.sum(whitened(trial, null[:, m], mean) ** 2)))
+    return np.array(out)
+
+
+def misfit_p(trial: Trial, z, observed: float, dof: int, fresh=None) -> float:
+    """p of the band χ² ``observed`` at ``z`` under the model there: :func:`misfit_null`
+    (with ``fresh``) and :func:`~rattlefit.diagnosis.null.null_p`; without null release
+    states (``trial.null_y0`` None), the χ² tail on ``dof``. NaN when no null recording could
+    be simulated."""
+    if trial.null_y0 is None:
+        return float(stats.chi2.sf(observed, dof))
+    null = misfit_null(trial, z, fresh)
+    null = null[np.isfinite(null)]
+    return null_p(observed, null) if null.size else float("nan")
 
 
 def difference_sd(trial: Trial, chi2_a: float, chi2_b: float, dof: int | None = None) -> float:
@@ -223,10 +281,12 @@ def judge_effect(
     trial: Trial, name: str, chi2_without: float, z_fit, level: float
 ) -> EffectOutcome:
     """The effect's outcome: χ² with it on the fresh realisations against ``chi2_without``
-    (the same realisations without any effect), the F-test at ``level`` and the Monte Carlo
-    noise of the drop."""
+    (the same realisations without any effect), the F-test at ``level``, the Monte Carlo
+    noise of the drop, and the p of the misfit it leaves under the model with it
+    (:func:`misfit_p`)."""
     d = len(trial.fields(name))
-    chi2_with, mean = final_chi2(trial, z_fit)
+    fresh = fresh_features(trial, np.asarray(z_fit)[None])[0]
+    chi2_with, mean = final_chi2(trial, z_fit, fresh)
     if not np.isfinite(chi2_with):
         return failed_outcome(trial, name, chi2_without, z_fit)
     delta = chi2_without - chi2_with
@@ -247,7 +307,7 @@ def judge_effect(
         supported=bool(p_value < level and delta > threshold),
         residuals=(trial.data - mean) / np.asarray(trial.problem.sigma),
         wall_time=0.0,
-        p_after=float(stats.chi2.sf(chi2_with, dof_with)),
+        p_after=misfit_p(trial, z_fit, chi2_with, dof_with, fresh),
     )
 
 

@@ -8,13 +8,15 @@ the band spectrum and the drive-cycle statistics. Its wording is
 
 The rules: the effects that significant model-free tests point to are named, unless fitting
 one to the band spectrum worsens the misfit beyond the Monte Carlo noise (:func:`contradicted`);
-a band candidate
-is named when it is *nameable* (:func:`nameable`), closes the band gap (it leaves a misfit
-consistent with noise or removes at least :data:`~.policy.CLOSES_MOST` of the excess) and no
-candidate of another mechanism also leaves a misfit consistent with noise, or one as small
-within the Monte Carlo noise of a χ² difference (:func:`rivals`): a gap that several physics
-close alike is a model-form difference as likely as any of them. The thresholds are
-:mod:`rattlefit.diagnosis.policy`'s.
+a band candidate is named when it is *nameable* (:func:`nameable`), closes the band gap (the
+misfit it leaves is consistent with the model's simulated null: ``p_after`` at least the
+significance) and no candidate of another mechanism also leaves a misfit consistent with
+noise, or one as small within the Monte Carlo noise of a χ² difference (:func:`rivals`): a gap
+that several physics close alike is a model-form difference as likely as any of them. When no
+candidate closes the gap, the one that comes nearest (:func:`nearest`) is reported, not named;
+if it removes at least :data:`~.policy.CLOSES_MOST` of the excess misfit the verdict is a
+*model-form difference*: the gap has nearly that effect's form, yet the effect as modelled
+leaves a significant rest. The thresholds are :mod:`rattlefit.diagnosis.policy`'s.
 """
 
 from __future__ import annotations
@@ -54,9 +56,12 @@ class Evidence:
 class Verdict:
     """The diagnosis' conclusion.
 
-    kind : ``"none"`` (no significant gap in any domain), ``"unexplained"`` (a significant
-        gap, in the band spectrum or the drive-cycle statistics, that no candidate
-        explains), ``"effect"`` or ``"effects"`` (one or two named).
+    kind : ``"none"`` (no significant gap in any domain), ``"model_form"`` (a significant band
+        gap that the :attr:`nearest` candidate nearly closes, removing at least
+        :data:`~.policy.CLOSES_MOST` of it, but not to noise), ``"unexplained"`` (a
+        significant gap, in the band spectrum or the drive-cycle statistics, that no
+        candidate explains nor nearly closes), ``"effect"`` or ``"effects"`` (one or two
+        named).
     effects : the named effects, model-free findings first.
     found : the most significant finding of each effect the model-free tests name.
     explaining : the band candidate that explains the band gap, or None.
@@ -65,6 +70,9 @@ class Verdict:
     indistinguishable : when candidates of different mechanisms close the gap alike, the one
         that closes it best and each other one that leaves noise, the least misfit first.
     band_gap, cycle_missed : as in :class:`Evidence`.
+    nearest : when a band gap is left that no candidate closes and none are indistinguishable,
+        the nameable candidate that leaves the least misfit (:func:`nearest`), or None. It is
+        reported with how much of the gap it closes, never named.
     """
 
     kind: str
@@ -75,6 +83,7 @@ class Verdict:
     band_gap: bool
     cycle_missed: bool
     contradicted: tuple[str, ...] = ()
+    nearest: EffectOutcome | None = None
 
     @property
     def label(self) -> str:
@@ -138,18 +147,22 @@ def within_noise(o: EffectOutcome, outcomes: Sequence[EffectOutcome], evidence: 
 
 
 def closing(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> EffectOutcome | None:
-    """The band candidate that closes the band gap best: nameable, leaving a misfit
-    consistent with noise or removing at least :data:`~.policy.CLOSES_MOST` of the excess; the least
-    misfit first; None when there is no band gap or no candidate closes it."""
+    """The band candidate that closes the band gap best: nameable and leaving a misfit
+    consistent with noise (:func:`within_noise`), the least misfit first; None when there is
+    no band gap or no candidate closes it."""
     if not evidence.band_gap:
         return None
-    closes = [
-        o
-        for o in outcomes
-        if nameable(o, outcomes, evidence)
-        and (o.p_after >= evidence.significance or o.gap_closed >= CLOSES_MOST)
-    ]
+    closes = [o for o in outcomes if within_noise(o, outcomes, evidence)]
     return min(closes, key=lambda o: o.chi2_with) if closes else None
+
+
+def nearest(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> EffectOutcome | None:
+    """Where a band gap is left that no candidate closes (:func:`closing` None): the
+    nameable candidate that leaves the least misfit, or None."""
+    if not evidence.band_gap or closing(outcomes, evidence) is not None:
+        return None
+    near = [o for o in outcomes if not o.failure and nameable(o, outcomes, evidence)]
+    return min(near, key=lambda o: o.chi2_with) if near else None
 
 
 def alike(o: EffectOutcome, best: EffectOutcome) -> bool:
@@ -202,17 +215,21 @@ def indistinguishable(
 def decide(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> Verdict:
     """The :class:`Verdict` of ``outcomes`` against ``evidence``: the effects named by
     significant model-free findings, then the band candidate that explains the band gap
-    (:func:`closing`, unless it has :func:`rivals`)."""
+    (:func:`closing`, unless it has :func:`rivals`), else the one that comes nearest
+    (:func:`nearest`)."""
     found = found_effects(evidence.findings)
     against = tuple(name for name, _ in found if contradicted(name, outcomes))
     found = [(name, f) for name, f in found if name not in against]
     alike = indistinguishable(outcomes, evidence)
     explaining = None if alike else closing(outcomes, evidence)
+    near = None if alike else nearest(outcomes, evidence)
     names = [name for name, _ in found]
     if explaining is not None:
         names += [n for n in explaining.effects if n not in names]
     if names:
         kind = "effect" if len(names) == 1 else "effects"
+    elif near is not None and near.gap_closed >= CLOSES_MOST:
+        kind = "model_form"
     elif evidence.band_gap or evidence.cycle_missed:
         kind = "unexplained"
     else:
@@ -226,4 +243,5 @@ def decide(outcomes: Sequence[EffectOutcome], evidence: Evidence) -> Verdict:
         band_gap=evidence.band_gap,
         cycle_missed=evidence.cycle_missed,
         contradicted=against,
+        nearest=near,
     )

@@ -123,12 +123,36 @@ def explaining_phrase(diag: Diagnosis) -> str:
     """The band candidate the verdict names, its size and the share of the misfit it
     closes."""
     o = diag.verdict.explaining
-    rest = "" if o.p_after >= diag.significance else ", a significant rest"
     size = f"{size_phrase(o)}; " if o.intervals else ""
     who = " and ".join(o.effects) + (" together" if len(o.effects) > 1 else "")
     return (
         f"{who} ({size}closes {100 * o.gap_closed:.0f} % of the band misfit: "
-        f"χ² {o.chi2_without:.1f} → {o.chi2_with:.1f}{rest})"
+        f"χ² {o.chi2_without:.1f} → {o.chi2_with:.1f})"
+    )
+
+
+def fitted_sizes(o: EffectOutcome) -> str:
+    """The fitted values of ``o`` in words, e.g. ``coefficient 0.227`` (lengths in µm)."""
+    parts = []
+    for key, value in o.values.items():
+        unit, scale = ("µm", 1e6) if o.units.get(key) == "m" else (o.units.get(key, "1"), 1.0)
+        parts.append(f"{key} {scale * value:.3g}" + ("" if unit == "1" else f" {unit}"))
+    return ", ".join(parts)
+
+
+def model_form_gap(diag: Diagnosis) -> str:
+    """The sentence, without its full stop, of a model-form difference: the gap, the
+    catalogue effect that comes nearest, how much of it that closes and what it leaves."""
+    o = diag.verdict.nearest
+    who = " and ".join(o.effects) + (" together" if len(o.effects) > 1 else "")
+    size = f" at {fitted_sizes(o)}" if o.values else ""
+    cycle = f"; {cycle_words(diag)}" if diag.cycle_missed else ""
+    return (
+        f"A model-form difference: the model without extra effects misses the band spectrum "
+        f"({fit_words(diag)}); the nearest effect in the catalogue, {who}{size}, closes "
+        f"{100 * o.gap_closed:.0f} % of the excess misfit (χ² {o.chi2_without:.1f} → "
+        f"{o.chi2_with:.1f}) but leaves a significant rest (p = {o.p_after:.2g}), so it is not "
+        f"named as the cause{cycle}"
     )
 
 
@@ -166,6 +190,8 @@ def verdict_sentence(diag: Diagnosis) -> str:
         )
     if v.kind == "unexplained":
         return unexplained_gap(diag) + contradicted_words(diag) + "."
+    if v.kind == "model_form":
+        return model_form_gap(diag) + contradicted_words(diag) + "."
     parts = [finding_phrase(f) for f in v.found]
     found = {f.effect for f in v.found}
     if v.explaining is not None and not set(v.explaining.effects) <= found:
