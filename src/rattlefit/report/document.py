@@ -29,7 +29,13 @@ from .inputs import (
 )
 from .summary import recording_summary, summary_rows
 from .tables import suggestion_note, suggestion_table
-from .wording import diagnosis_caveats, profile_sentence, profile_thresholds, search_sentence
+from .wording import (
+    diagnosis_caveats,
+    interval_label,
+    profile_sentence,
+    profile_thresholds,
+    search_sentence,
+)
 
 CSS = """
 body { font-family: -apple-system, 'Segoe UI', Helvetica, Arial, sans-serif; color: #1d1d1f;
@@ -340,7 +346,7 @@ def _interval_words(interval, name: str, unit: str, caveat: str = "") -> str:
     nothing without an interval."""
     if not interval:
         return ""
-    span = "the fit's precision, not a 95 % interval" if caveat else "95 %"
+    span = interval_label(bool(caveat))
     return f" ({span}: {shown(interval[0], name, unit)}–{shown(interval[1], name, unit)})"
 
 

@@ -41,6 +41,12 @@ def typical_phrase(effect: str, value: float) -> str:
     return f", {value / size:.2g} × the typical {size:.3g} [{source}]"
 
 
+def interval_label(caveat: bool) -> str:
+    """What a size's interval is called: ``95 %``, or with an ``interval_caveat`` the fit's
+    precision."""
+    return "the fit's precision, not a 95 % interval" if caveat else "95 %"
+
+
 def size_phrase(o: EffectOutcome) -> str:
     """The fitted sizes of ``o`` that have an interval, each against its typical size, e.g.
     ``coefficient 0.16 (95 %: 0.05–0.4), 3.2 × the typical 0.05 […]`` (lengths in
@@ -53,7 +59,7 @@ def size_phrase(o: EffectOutcome) -> str:
         unit, scale = ("µm", 1e6) if o.units[key] == "m" else (o.units[key], 1.0)
         unit = "" if unit == "1" else f" {unit}"
         effect = key.split(".", 1)[0] if "." in key else o.name
-        span = "the fit's precision, not a 95 % interval" if o.interval_caveat else "95 %"
+        span = interval_label(bool(o.interval_caveat))
         parts.append(
             f"{key} {scale * value:.3g}{unit} ({span}: {scale * lo:.3g}–{scale * hi:.3g})"
             + typical_phrase(effect, value)
