@@ -36,14 +36,16 @@ and on which flank, it misses.
 
 The verdict (:func:`~rattlefit.diagnosis.verdict.decide`) is ``"none"`` when the model
 without extra effects fits the band spectrum (its χ² after the re-fit, on the fresh
-realisations, has p ≥ ``significance``) and its drive-cycle statistics, and no model-free
-test stands out; the effects that significant model-free tests point to are named; a band
-candidate is named when it is supported and leaves a misfit consistent with noise, no
-candidate of another mechanism does too
+realisations, has p ≥ ``significance`` against recordings the model itself makes:
+:func:`~rattlefit.diagnosis.trial.misfit_p`) and its drive-cycle statistics, and no
+model-free test stands out; the effects that significant model-free tests point to are
+named; a band candidate is named when it is supported and leaves a misfit consistent with
+noise (by the same null, at its fitted point), no candidate of another mechanism does too
 (:func:`~rattlefit.diagnosis.verdict.rivals`), and,
 beside an effect the encoders found, only together with that effect (it is known to be
 there, so the other candidate must close clearly more than it alone); a significant gap
-that nothing explains is ``"unexplained"``.
+that a candidate nearly closes but not to noise is ``"model_form"``, and one that nothing
+explains is ``"unexplained"``.
 
 An effect is *supported* when an F-test of its χ² drop against the misfit that remains gives
 p < ``significance`` / (effects tried) (Bonferroni: ``significance`` is the family-wise
