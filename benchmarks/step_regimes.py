@@ -38,7 +38,8 @@ import jax.numpy as jnp
 import numpy as np
 
 import rattlefit as rf
-from rattlefit.simulation.solve import absolute_tolerances, initial_state
+from rattlefit.simulation.lockstep import FIRST_STEP
+from rattlefit.simulation.solve import absolute_tolerances, initial_state, step_controller
 from rattlefit.testing.results import provenance, write_result
 from rattlefit.testing.shared import operating_points, truth_params
 from run import FORWARD_POINTS as POINTS  # the forward comparison's operating points
@@ -61,13 +62,11 @@ def accepted_steps(setup, params, rtol: float, solver=None):
         solver,
         t0=-BURN_IN,
         t1=DURATION,
-        dt0=1e-5,
+        dt0=FIRST_STEP,
         y0=setup.model.full_state(initial_state(setup.model, params)),
         args=(params, setup.drive),
         saveat=diffrax.SaveAt(t0=True, steps=True),
-        stepsize_controller=diffrax.PIDController(
-            rtol=rtol, atol=jnp.asarray(atol), pcoeff=0.3, icoeff=0.4
-        ),
+        stepsize_controller=step_controller(rtol, atol),
         max_steps=400_000,
         throw=False,
     )

@@ -40,6 +40,11 @@ _B_ERR = tuple(float(x) for x in _TABLEAU.b_error)
 
 #: Result codes of :func:`solve_lockstep`.
 SUCCESS, STEP_LIMIT = 0, 1
+#: The step-size control of every simulation (this module's and diffrax's in
+#: :func:`~rattlefit.simulation.solve.simulate`): the first step tried, s, and the PI
+#: controller's proportional and integral coefficients.
+FIRST_STEP = 1e-5
+PCOEFF, ICOEFF = 0.3, 0.4
 
 
 def _dense_monomials() -> tuple[tuple[float, ...], ...]:
@@ -116,10 +121,10 @@ def solve_lockstep(
     sample_rate: float,
     rtol: float,
     atol: float | tuple[float, ...],
-    dt0: float = 1e-5,
+    dt0: float = FIRST_STEP,
     max_steps: int = 200_000,
-    pcoeff: float = 0.3,
-    icoeff: float = 0.4,
+    pcoeff: float = PCOEFF,
+    icoeff: float = ICOEFF,
     samples_per_step: int = 8,
 ) -> tuple[Float[Array, "B N D"], Int[Array, " B"], Int[Array, " B"]]:
     """Integrate B initial-value problems from ``t0`` and sample each at ``k / sample_rate``.

@@ -24,7 +24,7 @@ from ..config import require_x64
 from ..errors import SolverError
 from ..physics.drive import Drive
 from ..physics.model import RattleModel, RattleParams, share_stiffness_tables
-from .lockstep import solve_lockstep
+from .lockstep import FIRST_STEP, ICOEFF, PCOEFF, solve_lockstep
 from .parallel import map_blocks, map_rows
 
 
@@ -65,6 +65,13 @@ def _adjoint(kind: str):
     raise ValueError(f"unknown sensitivity {kind!r}: use 'forward' or 'reverse'")
 
 
+def step_controller(rtol: float, atol: float | tuple[float, ...]) -> diffrax.PIDController:
+    """The PI step-size controller of :func:`simulate` at ``rtol`` and ``atol`` (one number,
+    or one per state component of the model's full state)."""
+    atol = atol if isinstance(atol, float) else jnp.asarray(atol)
+    return diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=PCOEFF, icoeff=ICOEFF)
+
+
 def _solve(
     model: RattleModel,
     params: RattleParams,
@@ -86,16 +93,11 @@ def _solve(
         diffrax.Tsit5(),
         t0=-burn_in,
         t1=ts[-1],
-        dt0=1e-5,
+        dt0=FIRST_STEP,
         y0=model.full_state(y0),
         args=(params, drive),
         saveat=diffrax.SaveAt(ts=ts),
-        stepsize_controller=diffrax.PIDController(
-            rtol=rtol,
-            atol=atol if isinstance(atol, float) else jnp.asarray(atol),
-            pcoeff=0.3,
-            icoeff=0.4,
-        ),
+        stepsize_controller=step_controller(rtol, atol),
         max_steps=max_steps,
         adjoint=_adjoint(sensitivity),
         throw=False,
