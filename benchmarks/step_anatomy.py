@@ -28,14 +28,13 @@ import sys
 import time
 from pathlib import Path
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 import rattlefit as rf
 from rattlefit.io.recording import read_truth
-from rattlefit.physics.model import share_stiffness_tables
+from rattlefit.physics.model import share_stiffness_tables, with_stiffness_tables
 from rattlefit.simulation.lockstep import solve_lockstep
 from rattlefit.simulation.solve import absolute_tolerances, broadcast_params
 from rattlefit.testing.results import provenance, write_result
@@ -97,10 +96,7 @@ def compiled_block(field, tables, keep_samples: bool):
     as the fits' rows do."""
 
     def with_table(t, y, row):
-        model = eqx.tree_at(
-            lambda m: m.stiffness_table, row[0], tables, is_leaf=lambda x: x is None
-        )
-        return field(t, y, (model, *row[1:]))
+        return field(t, y, (with_stiffness_tables(row[0], tables), *row[1:]))
 
     def block(rows, y0):
         ys, steps, result = solve_lockstep(

@@ -604,3 +604,11 @@ def share_stiffness_tables(models: RattleModel) -> tuple[RattleModel, Array | No
         is_leaf=lambda x: x is None,
     )
     return untabled, models.stiffness_table
+
+
+def with_stiffness_tables(model: RattleModel, tables: Array | None) -> RattleModel:
+    """One row's model of :func:`share_stiffness_tables` reading its table out of the shared
+    stack ``tables`` (T, 2, n) again; unchanged when ``tables`` is None."""
+    if tables is None:
+        return model
+    return eqx.tree_at(lambda m: m.stiffness_table, model, tables, is_leaf=lambda x: x is None)

@@ -23,7 +23,12 @@ from jaxtyping import Array, Float, Int
 from ..config import require_x64
 from ..errors import SolverError
 from ..physics.drive import Drive
-from ..physics.model import RattleModel, RattleParams, share_stiffness_tables
+from ..physics.model import (
+    RattleModel,
+    RattleParams,
+    share_stiffness_tables,
+    with_stiffness_tables,
+)
 from .lockstep import FIRST_STEP, ICOEFF, PCOEFF, solve_lockstep
 from .parallel import map_blocks, map_rows
 
@@ -146,11 +151,7 @@ def solve_rows(
 
     def field(t, y, row):
         model, p, drive = row
-        if stiffness_tables is not None:
-            model = eqx.tree_at(
-                lambda m: m.stiffness_table, model, stiffness_tables, is_leaf=lambda x: x is None
-            )
-        return model.vector_field(t, y, (p, drive))
+        return with_stiffness_tables(model, stiffness_tables).vector_field(t, y, (p, drive))
 
     ys, steps, result = solve_lockstep(
         field,
