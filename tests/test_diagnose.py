@@ -246,7 +246,8 @@ def test_a_band_candidate_is_named_only_when_it_closes_the_gap_to_noise(chi2_wit
     sentence = verdict_sentence(diag)
     assert ("model-form difference" in sentence) == (kind == "model_form"), sentence
     if kind == "model_form":
-        assert "flank_friction" in sentence and "not named as the cause" in sentence, sentence
+        assert "flank_friction (dissipation in contact)" in sentence, sentence
+        assert "not named as the cause" in sentence, sentence
         assert f"{100 * outcome.gap_closed:.0f} %" in sentence, sentence
     assert diag.to_json()["nearest"] == (None if named else "flank_friction")
 

@@ -12,7 +12,7 @@ from ..diagnosis.result import Caveat, Diagnosis
 from ..features.orders import AngleTest
 from ..inference.least_squares import LM_REJECTIONS
 from ..inference.outcome import SearchOutcome
-from ..physics.effects import effect_class
+from ..physics.effects import effect_class, mechanism_of
 from ..problem.options import unfinished_fit_advice
 
 
@@ -151,6 +151,8 @@ def model_form_gap(diag: Diagnosis) -> str:
     catalogue effect that comes nearest, how much of it that closes and what it leaves."""
     o = diag.verdict.nearest
     who = " and ".join(o.effects) + (" together" if len(o.effects) > 1 else "")
+    kinds = sorted({mechanism_of(n) for n in o.effects} - set(o.effects))
+    who += f" ({', '.join(kinds)})" if kinds else ""
     size = f" at {fitted_sizes(o)}" if o.values else ""
     cycle = f"; {cycle_words(diag)}" if diag.cycle_missed else ""
     return (
