@@ -100,10 +100,12 @@ def test_features_converge_to_sharp_model(case):
         return np.sqrt(np.mean(z**2)), diff, abs(igr.mean() / igr_ref.mean() - 1)
 
     z_default, diff_default, igr_err = compare(1.0)
-    _, diff_coarse, _ = compare(100.0)
+    z_coarse, diff_coarse, _ = compare(100.0)
     # default smoothing: band means agree within their chaotic standard error
     assert z_default < Z_RMS, z_default
     assert igr_err < IGR_TOLERANCE, igr_err
-    # a 100x coarser smoothing is detectably wrong: the comparison can fail (measured: band
-    # means off by 0.23-0.95 rms, against 0.014-0.030 for the default)
-    assert diff_coarse > COARSE_FACTOR * diff_default, (diff_coarse, diff_default)
+    # a 100x coarser smoothing is detectably wrong, so the comparison can fail: its band means
+    # differ beyond chance, or (where its own motion turns chaotic and its spread hides the
+    # shift from z) by several times the default's difference
+    coarse_wrong = z_coarse > Z_RMS or diff_coarse > COARSE_FACTOR * diff_default
+    assert coarse_wrong, (z_coarse, diff_coarse, diff_default)
