@@ -9,13 +9,19 @@ import shutil
 import tempfile
 from pathlib import Path
 
-import pytest
-from threadpoolctl import threadpool_limits
+from rattlefit.reproducibility import cap_numpy_simd
 
-import rattlefit as rf
-from rattlefit.compile_cache import CACHE_ENV
-from rattlefit.testing.shared import recordings_dir
-from xla_threads import start_jax_on_one_thread
+# numpy's kernels below AVX-512, as XLA's are (rattlefit.reproducibility), in the workers,
+# notebook kernels, CLI and dask processes the run starts: numpy reads the setting at import
+cap_numpy_simd()
+
+import pytest  # noqa: E402
+from threadpoolctl import threadpool_limits  # noqa: E402
+
+import rattlefit as rf  # noqa: E402
+from rattlefit.compile_cache import CACHE_ENV  # noqa: E402
+from rattlefit.testing.shared import recordings_dir  # noqa: E402
+from xla_threads import start_jax_on_one_thread  # noqa: E402
 
 # pytest-xdist already runs one worker per core: keep each worker on one JAX device (starting
 # JAX here fixes that, so the CLI's use_cpu_cores() is a no-op under test) served by one thread

@@ -5,12 +5,14 @@ import os
 import platform
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 from rattlefit import reproducibility as rp
 
 X86 = platform.machine().lower() in ("x86_64", "amd64")
+BUNDLED = "pairII_boundary_65.6_20pct_16Hz.h5"  # a recording in data/
 MILD_RECORDING_SEED = 11  # the mild boundary recording of pair II (as in test_fit)
 
 # A 1 s synthetic recording of the mild rattle: long enough for the chaos to grow a last-bit
@@ -104,3 +106,52 @@ def test_platform_info_names_the_cpu_model():
         with open("/proc/cpuinfo") as f:
             vendor = next((ln.split(":")[1].strip() for ln in f if ln.startswith("vendor_id")), "")
         assert vendor in info["cpu"]
+
+
+# A command line started without numpy: `rattlefit info`, then what numpy's kernels use.
+CLI_SCRIPT = """
+import sys
+from rattlefit.cli import main
+from rattlefit.reproducibility import numpy_simd
+try:
+    main(["info", sys.argv[1]])
+except SystemExit:
+    pass
+print(numpy_simd())
+"""
+
+
+def _numpy_simd_of(script, *args, env_changes=()):
+    env = {k: v for k, v in os.environ.items() if k not in (rp.NUMPY_FEATURES_ENV, rp.ISA_ENV)}
+    env.update(dict(env_changes))
+    out = subprocess.run(
+        [sys.executable, "-c", script, *args], env=env, capture_output=True, text=True, check=True
+    )
+    return out.stdout.strip().splitlines()[-1]
+
+
+@pytest.mark.skipif(not X86, reason="the cap applies to x86-64 CPUs only")
+def test_the_command_line_keeps_numpy_below_avx512():
+    # numpy rounds its exp, log and sin differently with AVX-512: the command line must name
+    # the AVX-512 levels before numpy is imported, or an AVX-512 CPU computes another
+    # realisation than an AVX2 one (this can fail only on a CPU with AVX-512)
+    recording = str(Path(__file__).resolve().parents[1] / "data" / BUNDLED)
+    used = _numpy_simd_of(CLI_SCRIPT, recording)
+    assert used and not any(level in used.split() for level in rp.NUMPY_ABOVE_AVX2), used
+    # the workers of this test run inherit the cap from tests/conftest.py
+    assert not any(level in rp.numpy_simd().split() for level in rp.NUMPY_ABOVE_AVX2)
+
+
+def test_numpy_is_left_alone_when_asked(monkeypatch):
+    monkeypatch.delenv(rp.NUMPY_FEATURES_ENV, raising=False)
+    monkeypatch.setenv(rp.ISA_ENV, "native")
+    rp.cap_numpy_simd()
+    assert rp.NUMPY_FEATURES_ENV not in os.environ
+    rp.cap_numpy_simd("AVX512")
+    assert rp.NUMPY_FEATURES_ENV not in os.environ
+    monkeypatch.setenv(rp.NUMPY_FEATURES_ENV, "AVX512_SPR")  # the user's own choice wins
+    rp.cap_numpy_simd("AVX2")
+    assert os.environ[rp.NUMPY_FEATURES_ENV] == "AVX512_SPR"
+    monkeypatch.delenv(rp.NUMPY_FEATURES_ENV)
+    rp.cap_numpy_simd("AVX2")
+    assert os.environ[rp.NUMPY_FEATURES_ENV].split() == list(rp.NUMPY_ABOVE_AVX2) or not X86

@@ -29,7 +29,7 @@ import jax
 
 from .compile_cache import use_compilation_cache
 from .errors import RattlefitError
-from .reproducibility import backend_started, cpu_isa, pin_cpu_isa
+from .reproducibility import backend_started, cap_numpy_simd, cpu_isa, pin_cpu_isa
 
 
 @dataclasses.dataclass(frozen=True)
@@ -75,8 +75,9 @@ def configure(
     cpu_isa_cap: str | None = None,
     compilation_cache: bool | str | os.PathLike = False,
 ) -> Configuration:
-    """Enable JAX's 64-bit mode, cap XLA's CPU instruction set and give JAX one CPU device per
-    core (``cpu_cores`` of them if given).
+    """Enable JAX's 64-bit mode, cap XLA's CPU instruction set (and numpy's, in the processes
+    started after the call: :func:`~rattlefit.reproducibility.cap_numpy_simd`) and give JAX one
+    CPU device per core (``cpu_cores`` of them if given).
 
     ``cpu_isa_cap`` overrides ``$RATTLEFIT_CPU_ISA`` and the default cap (AVX2; "native": no
     cap). ``compilation_cache`` True keeps compiled programs in the default directory
@@ -86,6 +87,7 @@ def configure(
     of nothing. Returns the :class:`Configuration` in effect.
     """
     jax.config.update("jax_enable_x64", True)
+    cap_numpy_simd(cpu_isa_cap)  # for the processes started from here on (numpy is loaded)
     if backend_started():
         devices = len(jax.devices("cpu"))
         if cpu_cores is not None and int(cpu_cores) != devices:

@@ -13,6 +13,13 @@ effect and its cost).
 cap the user already set in ``XLA_FLAGS`` is kept. ``RATTLEFIT_CPU_ISA`` chooses another cap,
 or ``native`` for none. On other architectures (aarch64) and on GPUs nothing is changed.
 
+numpy's own vectorised kernels (its ``exp``, ``log``, ``sin`` and the like, which the
+encoders, drives and features use) choose an instruction set once, when numpy is imported, and
+round differently with AVX-512 too. :func:`cap_numpy_simd` keeps them below AVX-512 through
+``NPY_DISABLE_CPU_FEATURES``, which numpy reads at import: the command line does so before it
+imports numpy, and :func:`rattlefit.configure` does so for the processes a script starts
+(campaign workers, notebook kernels), since the script's own numpy is usually imported by then.
+
 The cap is not the whole story: the CPU model matters too, because LLVM tunes its instruction
 selection (which multiply–adds it fuses, how it orders a vectorised sum) for the CPU it finds,
 so the same code, JAX version and cap can give another realisation on another CPU model.
@@ -27,12 +34,31 @@ from __future__ import annotations
 import os
 import platform
 import re
+import sys
 import warnings
 
 #: The instruction-set cap rattlefit applies to XLA on x86-64 unless told otherwise.
 DEFAULT_CPU_ISA = "AVX2"
 #: The environment variable that overrides it ("native": no cap).
 ISA_ENV = "RATTLEFIT_CPU_ISA"
+
+#: The environment variable numpy reads, once at import, for the instruction-set extensions
+#: its kernels must leave unused.
+NUMPY_FEATURES_ENV = "NPY_DISABLE_CPU_FEATURES"
+#: What lies above AVX2 in numpy's names: its 2.x level and its 1.x features (numpy ignores a
+#: name the CPU lacks or it does not know).
+NUMPY_ABOVE_AVX2 = (
+    "X86_V4",
+    "AVX512F",
+    "AVX512CD",
+    "AVX512_KNL",
+    "AVX512_KNM",
+    "AVX512_SKX",
+    "AVX512_CLX",
+    "AVX512_CNL",
+    "AVX512_ICL",
+    "AVX512_SPR",
+)
 
 _FLAG = re.compile(r"--xla_cpu_max_isa=(\S+)")
 _X86 = ("x86_64", "amd64", "i386", "i686")
@@ -78,6 +104,37 @@ def pin_cpu_isa(isa: str | None = None) -> str:
     return isa
 
 
+def cap_numpy_simd(isa: str | None = None) -> str:
+    """Keep numpy's vectorised kernels below AVX-512 wherever XLA's cap is below it, by
+    naming :data:`NUMPY_ABOVE_AVX2` in ``$NPY_DISABLE_CPU_FEATURES``.
+
+    numpy reads that variable once, when it is first imported: the cap holds in this process
+    if numpy is imported after the call, and in every process started after it. ``isa`` is
+    the XLA cap as for :func:`pin_cpu_isa`; an AVX-512 or ``"native"`` cap, a CPU that is not
+    x86-64, or a value the user has already set leaves the variable alone. Returns what numpy
+    in this process uses (:func:`numpy_simd`; "" while numpy is not imported)."""
+    isa = (isa or os.environ.get(ISA_ENV) or DEFAULT_CPU_ISA).upper()
+    below = isa != "NATIVE" and "AVX512" not in isa and platform.machine().lower() in _X86
+    if below and NUMPY_FEATURES_ENV not in os.environ:
+        os.environ[NUMPY_FEATURES_ENV] = " ".join(NUMPY_ABOVE_AVX2)
+    return numpy_simd() if "numpy" in sys.modules else ""
+
+
+def numpy_simd() -> str:
+    """The instruction-set extensions numpy's kernels use in this process, beyond its
+    baseline, as numpy names them (e.g. "X86_V3", or "X86_V3 X86_V4 AVX512_ICL" with
+    AVX-512); "baseline" for none, "unknown" for a numpy that does not say."""
+    try:
+        from numpy._core import _multiarray_umath as umath
+    except ImportError:  # pragma: no cover - numpy 1.x
+        from numpy.core import _multiarray_umath as umath
+    try:
+        found, dispatch = umath.__cpu_features__, umath.__cpu_dispatch__
+    except AttributeError:  # pragma: no cover - a numpy without the registry
+        return "unknown"
+    return " ".join(f for f in dispatch if found.get(f)) or "baseline"
+
+
 def cpu_isa() -> str:
     """The instruction-set cap XLA runs under ("native" for none)."""
     found = _FLAG.search(os.environ.get("XLA_FLAGS", ""))
@@ -108,8 +165,9 @@ def cpu_model(cpuinfo: str | None = None) -> str:
 
 def platform_info() -> dict:
     """What a seeded result depends on besides its inputs: rattlefit's and JAX's versions,
-    the backend, the device count, the machine architecture, the CPU instruction-set cap and
-    the CPU model. Every JSON output records it under ``platform``."""
+    the backend, the device count, the machine architecture, XLA's CPU instruction-set cap,
+    the extensions numpy's kernels use (:func:`numpy_simd`) and the CPU model. Every JSON
+    output records it under ``platform``."""
     import jax
 
     from .version import __version__
@@ -121,5 +179,6 @@ def platform_info() -> dict:
         "devices": len(jax.local_devices()),
         "machine": platform.machine(),
         "cpu_isa": cpu_isa(),
+        "numpy_simd": numpy_simd(),
         "cpu": cpu_model(),
     }
