@@ -373,10 +373,18 @@ def test_diagnose_judges_rattlefits_own_clean_recording_on_the_learned_likelihoo
     assert doc["gap_chi2"]["p_value"] > 0.01
 
 
+#: How far --suggest's learned width may stray from the learned fit's Laplace width, and from
+#: the width the simulator's own information gives (factors on the width in log).
+LAPLACE_AGREEMENT, SIMULATOR_AGREEMENT = 1.6, 2.0
+
+
 def test_suggest_predicts_the_learned_fits_own_width_and_the_simulators(learned_fit):
     # the "now" row of --suggest on a learned fit is the learned likelihood's Fisher
     # information; it must predict the learned fit's Laplace width, and agree with the
-    # information estimated from the exact simulator's realisations at the same point
+    # information estimated from the exact simulator's realisations at the same point. Over fit
+    # seeds 0-2 the first ratio spread over 0.75-1.18 (log-sd 0.17) and the second over
+    # 0.58-1.03 (the learned density is the narrower, log-sd 0.23): the bounds are about three
+    # standard deviations off, a factor 2 or more would be a fault
     rec, result, _ = learned_fit
     problem = result.state.problem
     names, info = fitted_information(result, problem, [rec], np.random.default_rng(0))
@@ -394,8 +402,9 @@ def test_suggest_predicts_the_learned_fits_own_width_and_the_simulators(learned_
         laplace = 2 * 1.96 * sd
         label = {"film_half_length": "film_half_length[boundary]"}.get(name, name)
         width = math.log(learned[label])
-        assert 1 / 1.3 < width / laplace < 1.3, (name, width, laplace)
-        assert 1 / 1.8 < width / math.log(simulated[name]) < 1.8, (name, learned, simulated)
+        assert 1 / LAPLACE_AGREEMENT < width / laplace < LAPLACE_AGREEMENT, (name, width, laplace)
+        ratio = width / math.log(simulated[name])
+        assert 1 / SIMULATOR_AGREEMENT < ratio < SIMULATOR_AGREEMENT, (name, learned, simulated)
 
 
 def test_a_saved_learned_fit_reads_back_with_its_likelihood_beside(learned_fit, tmp_path):
