@@ -56,13 +56,13 @@ import rattlefit as rf
 from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
 from rattlefit.diagnosis.evidence import findings
 from rattlefit.diagnosis.policy import POINTS_TO
+from rattlefit.diagnosis.verdict import NAMES_NOTHING as CLEAN
 from rattlefit.report import verdict_sentence
 from rattlefit.testing.shared import recordings_dir
 from validation.diagnose_sets import DISSIPATION, clean_set, injected_set
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = recordings_dir(REPO)
-CLEAN = ("none", "unexplained", "model_form")
 #: The shared truth's effect names, as the verdicts that count as right.
 SHARED_EXPECTED = {"runout": ("runout",), "sliding_friction": DISSIPATION}
 FAMILY = 0.01  # the diagnosis' default family-wise level

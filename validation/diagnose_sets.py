@@ -57,6 +57,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from rattlefit.config import configure
+from rattlefit.diagnosis.verdict import NAMES_NOTHING as CLEAN
 from rattlefit.io.recording import OperatingPoint, write_recording
 from rattlefit.physics.drive import Drive
 from rattlefit.physics.effects import EFFECTS, mechanism_of
@@ -81,8 +82,6 @@ DURATION = 3.0
 MEAN_SPEED = 52.36
 #: Film half-length a of each lubrication, m (the shared truth's).
 FILM = {"dry": 0.0, "boundary": 0.085e-3, "oil_jet": 1.0e-3}
-#: Acceptable verdicts of a recording without an unmodelled effect.
-CLEAN = ("none", "unexplained", "model_form")
 #: The catalogue's candidates for dissipation in contact: any of them names it rightly.
 DISSIPATION = tuple(n for n in EFFECTS if mechanism_of(n) == "dissipation in contact")
 #: Impact speed at which a speed-dependent restitution is stated, m/s: the median contact-onset

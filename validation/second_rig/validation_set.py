@@ -47,6 +47,7 @@ from pathlib import Path
 import numpy as np
 from scipy import optimize
 
+from rattlefit.diagnosis.verdict import NAMES_NOTHING as CLEAN
 from rattlefit.io.recording import (
     GearPairSpec,
     OilSpec,
@@ -85,7 +86,6 @@ FREQUENCIES = (4, 6, 8, 10, 12, 14, 16)
 COUNTS, RATE = 40_000, 10_000.0
 #: Stated standard uncertainty of the angular backlash, and the true error's spread, rad.
 BACKLASH_STD, BACKLASH_ERROR = 2e-4, 1e-4
-CLEAN = ("none", "unexplained", "model_form")
 #: Largest ratio of inertial forcing to drag at the speed-dependent-drag cases' points.
 DRAG_FORCING = 5.0
 LUBRICATIONS = ("dry", "boundary", "oil_jet")

@@ -37,7 +37,7 @@ from .trial import (
     field_key,
     final_chi2,
     fresh_features,
-    misfit_p,
+    misfit_ps,
     refit_steps,
     residual_rows,
 )
@@ -92,7 +92,8 @@ def size_interval(
     )
     dof = max(trial.dof - len(trial.fields(name)), 1)
     chi2, accepted = profiled_misfits(trial, polished, dof)
-    chi2 = np.where(np.isfinite(np.append(chi2, chi2_fit)), np.append(chi2, chi2_fit), np.inf)
+    chi2 = np.append(chi2, chi2_fit)
+    chi2 = np.where(np.isfinite(chi2), chi2, np.inf)
     logs = np.append(logs, math.log10(float(spec.value(z_fit[i]))))
     best = float(np.min(chi2))
     scale = max(1.0, best / dof)  # the misfit left, per degree of freedom
@@ -116,11 +117,8 @@ def profiled_misfits(trial: Trial, points, dof: int) -> tuple[np.ndarray, np.nda
     chi2 = np.array([final_chi2(trial, z, f)[0] for z, f in zip(points, fresh, strict=True)])
     if trial.null_y0 is None:
         return chi2, np.zeros(len(points), dtype=bool)
-    p = [
-        misfit_p(trial, z, c, dof, f) if np.isfinite(c) else 0.0
-        for z, c, f in zip(points, chi2, fresh, strict=True)
-    ]
-    return chi2, np.asarray(p) >= ACCEPT_P
+    p = misfit_ps(trial, points, chi2, dof, fresh)  # every point's null in one batch
+    return chi2, np.isfinite(chi2) & (p >= ACCEPT_P)
 
 
 def size_intervals(trial: Trial, name: str, z_fit, chi2_fit: float) -> dict[str, tuple]:

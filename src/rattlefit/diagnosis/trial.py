@@ -230,14 +230,21 @@ def final_chi2(trial: Trial, z, fresh=None) -> tuple[float, np.ndarray]:
     return float(np.sum(whitened_rows(trial, mean) ** 2)), mean
 
 
-def misfit_null(trial: Trial, z, fresh=None) -> np.ndarray:
-    """χ² (n,) of the null recordings of the model at ``z`` (P,), one per release state of
-    ``trial.null_y0`` (R, n, 2), each against the mean of the fresh realisations ``fresh``
-    (R, M, B; simulated when None) in the regime that recording is in (module docstring)."""
+def misfit_nulls(trial: Trial, zs, fresh=None) -> np.ndarray:
+    """χ² (K, n) of the null recordings of the model at each point of ``zs`` (K, P), one per
+    release state of ``trial.null_y0`` (R, n, 2), each against the mean of that point's fresh
+    realisations ``fresh`` (K, R, M, B; simulated when None) in the regime that recording is
+    in (module docstring). Every point's null recordings are simulated in one batch."""
+    zs = np.asarray(zs, dtype=float)
+    fresh = np.asarray(fresh_features(trial, zs) if fresh is None else fresh)
+    null = np.asarray(fresh_features(trial, zs, trial.null_y0))
+    return np.stack([null_chi2s(trial, f, n) for f, n in zip(fresh, null, strict=True)])
+
+
+def null_chi2s(trial: Trial, fresh, null) -> np.ndarray:
+    """χ² (n,) of the null recordings ``null`` (R, n, B) of one point, each against the mean
+    of the point's fresh realisations ``fresh`` (R, M, B) in its own regime."""
     problem = trial.problem
-    zs = np.asarray(z, dtype=float)[None]
-    fresh = np.asarray(fresh_features(trial, zs)[0] if fresh is None else fresh)
-    null = np.asarray(fresh_features(trial, zs, trial.null_y0)[0])
     nb = problem.n_bands
     out = []
     for m in range(null.shape[1]):
@@ -248,16 +255,38 @@ def misfit_null(trial: Trial, z, fresh=None) -> np.ndarray:
     return np.array(out)
 
 
-def misfit_p(trial: Trial, z, observed: float, dof: int, fresh=None) -> float:
-    """p of the band χ² ``observed`` at ``z`` under the model there: :func:`misfit_null`
-    (with ``fresh``) and :func:`~rattlefit.diagnosis.null.null_p`; without null release
-    states (``trial.null_y0`` None), the χ² tail on ``dof``. NaN when no null recording could
-    be simulated."""
+def misfit_null(trial: Trial, z, fresh=None) -> np.ndarray:
+    """:func:`misfit_nulls` of the one point ``z`` (P,), with its fresh features ``fresh``
+    (R, M, B) if given: (n,)."""
+    fresh = None if fresh is None else np.asarray(fresh)[None]
+    return misfit_nulls(trial, np.asarray(z, dtype=float)[None], fresh)[0]
+
+
+def misfit_ps(trial: Trial, zs, observed, dof: int, fresh=None) -> np.ndarray:
+    """p (K,) of each band χ² ``observed`` (K,) at its point of ``zs`` (K, P) under the model
+    there: :func:`misfit_nulls` (with ``fresh``, (K, R, M, B)) and
+    :func:`~rattlefit.diagnosis.null.null_p`; without null release states (``trial.null_y0``
+    None), the χ² tail on ``dof``. NaN where no null recording could be simulated."""
+    observed = np.asarray(observed, dtype=float)
     if trial.null_y0 is None:
-        return float(stats.chi2.sf(observed, dof))
-    null = misfit_null(trial, z, fresh)
+        return stats.chi2.sf(observed, dof)
+    nulls = misfit_nulls(trial, zs, fresh)
+    return np.array([null_p_of(o, null) for o, null in zip(observed, nulls, strict=True)])
+
+
+def null_p_of(observed: float, null: np.ndarray) -> float:
+    """:func:`~rattlefit.diagnosis.null.null_p` of ``observed`` against the finite values of
+    ``null``; NaN when there are none."""
     null = null[np.isfinite(null)]
     return null_p(observed, null) if null.size else float("nan")
+
+
+def misfit_p(trial: Trial, z, observed: float, dof: int, fresh=None) -> float:
+    """:func:`misfit_ps` of the one point ``z`` (P,) and its χ² ``observed``, with its fresh
+    features ``fresh`` (R, M, B) if given."""
+    fresh = None if fresh is None else np.asarray(fresh)[None]
+    zs = np.asarray(z, dtype=float)[None]
+    return float(misfit_ps(trial, zs, np.array([observed]), dof, fresh)[0])
 
 
 def difference_sd(trial: Trial, chi2_a: float, chi2_b: float, dof: int | None = None) -> float:

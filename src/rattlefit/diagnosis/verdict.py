@@ -52,6 +52,10 @@ class Evidence:
         return frozenset(f.effect for f in self.findings if f.significant)
 
 
+#: The verdict kinds that name no effect: what a recording without a missing effect should get.
+NAMES_NOTHING = ("none", "unexplained", "model_form")
+
+
 @dataclasses.dataclass(frozen=True)
 class Verdict:
     """The diagnosis' conclusion.
@@ -87,7 +91,7 @@ class Verdict:
 
     @property
     def label(self) -> str:
-        """``"none"``, ``"unexplained"`` or the effects joined by ``+``."""
+        """One of :data:`NAMES_NOTHING`, or the named effects joined by ``+``."""
         return pair_name(*self.effects) if self.effects else self.kind
 
     @property
