@@ -22,6 +22,7 @@ from rattlefit.diagnosis.diagnose import DiagnoseOptions, diagnose
 from rattlefit.diagnosis.outcome import EffectOutcome, gap_closed
 from rattlefit.diagnosis.result import Caveat, Diagnosis, baseline_caveats
 from rattlefit.diagnosis.screening import (
+    DRAG_SPREAD,
     FREE_FACTORS,
     SCREEN_DECADES,
     distinct_rows,
@@ -100,7 +101,7 @@ def test_screen_points_try_each_field_alone_and_together_with_less_film_and_drag
     z_off[0] = problem.specs[0].z_of(2e-4)  # a = 0.2 mm
     pts = screen_points(z_off, idx, problem)
     per_film = 3 * len(SCREEN_DECADES)  # each field alone, then both together
-    assert pts.shape == (len(FREE_FACTORS) * per_film, p0 + len(specs))
+    assert pts.shape == ((len(FREE_FACTORS) + len(DRAG_SPREAD)) * per_film, p0 + len(specs))
     values = np.array([[float(s.value(z[p0 + j])) for j, s in enumerate(specs)] for z in pts])
     first = values[: len(SCREEN_DECADES)]  # driving run-out alone, from the top down
     np.testing.assert_allclose(first[:, 0], 1e-4 * 10.0 ** -np.asarray(SCREEN_DECADES), rtol=1e-4)
@@ -124,12 +125,13 @@ def test_a_shape_field_is_screened_only_with_the_size_and_repeated_starts_once()
         [np.zeros(len(base.specs)), np.full(len(problem.specs) - len(base.specs), -8.0)]
     )
     pts = screen_points(z_off, [ratio, freq], problem, shape=[freq])
-    assert pts.shape[0] == len(FREE_FACTORS) * 2 * len(SCREEN_DECADES)  # ratio alone, both
+    alternatives = len(FREE_FACTORS) + len(DRAG_SPREAD)
+    assert pts.shape[0] == alternatives * 2 * len(SCREEN_DECADES)  # ratio alone, both
     lowest = float(problem.specs[ratio].value(pts[:, ratio]).min())
     assert lowest == pytest.approx(10.0 * 10.0 ** -max(SCREEN_DECADES), rel=1e-3)  # never absent
     dry = distinct_rows(np.where(np.arange(pts.shape[1]) == 0, -Z_END, pts))  # films at the end
-    drags = {f for _, f in FREE_FACTORS}
-    assert dry.shape[0] == len(drags) * 2 * len(SCREEN_DECADES)  # dry: only the drag differs
+    drags = len({f for _, f in FREE_FACTORS}) + len(DRAG_SPREAD)
+    assert dry.shape[0] == drags * 2 * len(SCREEN_DECADES)  # dry: only the drag differs
     np.testing.assert_array_equal(
         distinct_rows(np.array([[1, 2], [0, 0], [1, 2], [3, 3]])), [[1, 2], [0, 0], [3, 3]]
     )  # first appearances, in order
@@ -140,10 +142,16 @@ def test_baseline_refit_starts_from_the_identification_and_the_free_alternatives
     problem, _ = build_problem([rec], FitOptions.quick(), np.random.default_rng(BUILD_SEED))
     z = np.linspace(-0.5, 0.5, len(problem.specs))
     alts = free_alternatives(z, problem)
-    assert alts.shape == (len(FREE_FACTORS), len(z))
+    assert alts.shape == (len(FREE_FACTORS) + len(DRAG_SPREAD), len(z))
     np.testing.assert_allclose(alts[0], z)  # FREE_FACTORS[0] is the identification itself
     film, drag = problem.specs[0], problem.specs[1]
-    for row, (f_film, f_drag) in zip(alts, FREE_FACTORS, strict=True):
+    # then dry with the drag across the fit's start range, whatever the identification's drag
+    # (5 mN m to 0.2 N m: its ends and their geometric mean)
+    spread = alts[len(FREE_FACTORS) :]
+    assert np.all(spread[:, 0] == -Z_END)
+    np.testing.assert_allclose(drag.value(spread[:, 1]), [5e-3, 0.2**0.5 * 5e-3**0.5, 0.2])
+    np.testing.assert_array_equal(spread[:, 2:], np.broadcast_to(z[2:], spread[:, 2:].shape))
+    for row, (f_film, f_drag) in zip(alts, FREE_FACTORS, strict=False):
         expect = max(float(film.value(z[0])) * f_film, film.lower) if f_film else film.lower
         assert float(film.value(row[0])) == pytest.approx(expect, rel=0.01)  # ends: ≈ lower
         assert float(drag.value(row[1])) == pytest.approx(float(drag.value(z[1])) * f_drag)

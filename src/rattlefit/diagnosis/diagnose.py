@@ -9,7 +9,8 @@ starts from an identification (:func:`~rattlefit.inference.identify.identify`) a
    optimum, and the bands where it exceeds :data:`~rattlefit.diagnosis.result.MISSED_Z`;
 2. **re-fits the model without effects** over ``a``, ``drag_torque`` and the nuisances
    (with their priors) from the alternatives of ``a`` and ``drag_torque`` every effect's
-   screening starts from (:data:`~rattlefit.diagnosis.screening.FREE_FACTORS`), so that an
+   screening starts from (:data:`~rattlefit.diagnosis.screening.FREE_FACTORS` and
+   :data:`~rattlefit.diagnosis.screening.DRAG_SPREAD`), so that an
    effect is not credited with what that re-fit alone gains, nor with what a plausible
    shift of the mesh stiffness, h_min or the viscosity explains; when the re-fit lowers
    the identification's cost by more than half, or the identification stopped at its step

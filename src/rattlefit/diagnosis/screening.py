@@ -47,6 +47,10 @@ FREE_FACTORS = (
     (0.0, 8.0),
     (1.0, 4.0),
 )
+#: Drag torques of the dry alternatives that do not follow the fitted one, as shares of the way
+#: across the drag's start range in the log (0: its lower end, 1: its upper): a fit without the
+#: effect can drive the drag to the end of its range, out of reach of any factor on it.
+DRAG_SPREAD = (0.0, 0.5, 1.0)
 
 
 def screen_points(
@@ -104,8 +108,9 @@ def free_indices(problem) -> list[int]:
 
 def free_alternatives(z: np.ndarray, problem) -> np.ndarray:
     """``z`` with the film half-length(s) and the drag torque at each of
-    :data:`FREE_FACTORS` of their values in ``z`` (a factor 0: the bottom of the range); one
-    row per pair, every film half-length scaled alike."""
+    :data:`FREE_FACTORS` of their values in ``z`` (a factor 0: the bottom of the range), one
+    row per pair, every film half-length scaled alike; then dry, with the drag at each of
+    :data:`DRAG_SPREAD` across its start range (:func:`spread_drags`)."""
     i_drag = free_indices(problem)[-1]
 
     def scaled(i, factor):
@@ -121,7 +126,20 @@ def free_alternatives(z: np.ndarray, problem) -> np.ndarray:
             row[i_film] = scaled(i_film, f_film)
         row[i_drag] = scaled(i_drag, f_drag)
         rows.append(row)
+    for drag in spread_drags(problem.specs[i_drag]):
+        row = np.array(z, dtype=float, copy=True)
+        for i_film in film_indices(problem):
+            row[i_film] = -Z_END
+        row[i_drag] = drag
+        rows.append(row)
     return np.stack(rows)
+
+
+def spread_drags(spec) -> list[float]:
+    """The drag coordinates at :data:`DRAG_SPREAD` across ``spec``'s start range in the log
+    (its range when it has none)."""
+    lo, hi = spec.start_range or (spec.lower, spec.upper)
+    return [spec.z_of(float(lo * (hi / lo) ** t)) for t in DRAG_SPREAD]
 
 
 def distinct_rows(points: np.ndarray) -> np.ndarray:
