@@ -144,6 +144,7 @@ def test_the_command_line_keeps_numpy_below_avx512():
 
 def test_numpy_is_left_alone_when_asked(monkeypatch):
     monkeypatch.delenv(rp.NUMPY_FEATURES_ENV, raising=False)
+    monkeypatch.setenv("XLA_FLAGS", "--xla_foo=1")
     monkeypatch.setenv(rp.ISA_ENV, "native")
     rp.cap_numpy_simd()
     assert rp.NUMPY_FEATURES_ENV not in os.environ
@@ -155,3 +156,18 @@ def test_numpy_is_left_alone_when_asked(monkeypatch):
     monkeypatch.delenv(rp.NUMPY_FEATURES_ENV)
     rp.cap_numpy_simd("AVX2")
     assert os.environ[rp.NUMPY_FEATURES_ENV].split() == list(rp.NUMPY_ABOVE_AVX2) or not X86
+
+
+@pytest.mark.skipif(not X86, reason="the cap applies to x86-64 CPUs only")
+def test_a_cap_in_xla_flags_wins_for_numpy_too(monkeypatch):
+    monkeypatch.delenv(rp.NUMPY_FEATURES_ENV, raising=False)
+    monkeypatch.setenv(rp.ISA_ENV, "AVX2")
+    monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_max_isa=AVX512")
+    assert rp.requested_cap("SSE4_2") == "AVX512"
+    rp.cap_numpy_simd("AVX2")  # XLA runs with AVX-512, so numpy may too
+    assert rp.NUMPY_FEATURES_ENV not in os.environ
+    monkeypatch.setenv("XLA_FLAGS", "--xla_foo=1 --xla_cpu_max_isa=SSE4_2")
+    rp.cap_numpy_simd("native")
+    assert os.environ[rp.NUMPY_FEATURES_ENV].split() == list(rp.NUMPY_ABOVE_AVX2)
+    monkeypatch.setenv("XLA_FLAGS", "--xla_foo=1")
+    assert rp.requested_cap() == "AVX2" and rp.requested_cap("native") == "native"

@@ -34,7 +34,6 @@ from __future__ import annotations
 import os
 import platform
 import re
-import sys
 import warnings
 
 #: The instruction-set cap rattlefit applies to XLA on x86-64 unless told otherwise.
@@ -75,6 +74,17 @@ def backend_started() -> bool:
         return False
 
 
+def requested_cap(isa: str | None = None) -> str:
+    """The instruction-set cap asked for: a cap already in ``XLA_FLAGS``, else ``isa``, else
+    ``$RATTLEFIT_CPU_ISA``, else :data:`DEFAULT_CPU_ISA`; ``"native"`` (no cap) when that says
+    so or the CPU is not x86-64."""
+    already = _FLAG.search(os.environ.get("XLA_FLAGS", ""))
+    isa = already.group(1) if already else isa or os.environ.get(ISA_ENV) or DEFAULT_CPU_ISA
+    if isa.lower() == "native" or platform.machine().lower() not in _X86:
+        return "native"
+    return isa
+
+
 def pin_cpu_isa(isa: str | None = None) -> str:
     """Cap XLA's CPU instruction set so that results do not depend on which instruction-set
     extensions the CPU offers beyond the cap.
@@ -85,12 +95,9 @@ def pin_cpu_isa(isa: str | None = None) -> str:
     effect: a warning says so and nothing is changed.
     """
     flags = os.environ.get("XLA_FLAGS", "")
-    already = _FLAG.search(flags)
-    if already:
-        return already.group(1)
-    isa = isa or os.environ.get(ISA_ENV) or DEFAULT_CPU_ISA
-    if isa.lower() == "native" or platform.machine().lower() not in _X86:
-        return "native"
+    isa = requested_cap(isa)
+    if _FLAG.search(flags) or isa == "native":
+        return isa
     if backend_started():
         warnings.warn(
             "rattlefit: JAX started before rattlefit.configure() was called, so XLA's CPU "
@@ -104,20 +111,18 @@ def pin_cpu_isa(isa: str | None = None) -> str:
     return isa
 
 
-def cap_numpy_simd(isa: str | None = None) -> str:
+def cap_numpy_simd(isa: str | None = None) -> None:
     """Keep numpy's vectorised kernels below AVX-512 wherever XLA's cap is below it, by
     naming :data:`NUMPY_ABOVE_AVX2` in ``$NPY_DISABLE_CPU_FEATURES``.
 
     numpy reads that variable once, when it is first imported: the cap holds in this process
     if numpy is imported after the call, and in every process started after it. ``isa`` is
-    the XLA cap as for :func:`pin_cpu_isa`; an AVX-512 or ``"native"`` cap, a CPU that is not
-    x86-64, or a value the user has already set leaves the variable alone. Returns what numpy
-    in this process uses (:func:`numpy_simd`; "" while numpy is not imported)."""
-    isa = (isa or os.environ.get(ISA_ENV) or DEFAULT_CPU_ISA).upper()
-    below = isa != "NATIVE" and "AVX512" not in isa and platform.machine().lower() in _X86
-    if below and NUMPY_FEATURES_ENV not in os.environ:
+    the XLA cap as :func:`requested_cap` resolves it (a cap in ``XLA_FLAGS`` wins); an
+    AVX-512 or ``"native"`` cap, a CPU that is not x86-64, or a value the user has already set
+    leaves the variable alone. :func:`numpy_simd` says what numpy uses."""
+    cap = requested_cap(isa).upper()
+    if cap != "NATIVE" and "AVX512" not in cap and NUMPY_FEATURES_ENV not in os.environ:
         os.environ[NUMPY_FEATURES_ENV] = " ".join(NUMPY_ABOVE_AVX2)
-    return numpy_simd() if "numpy" in sys.modules else ""
 
 
 def numpy_simd() -> str:
