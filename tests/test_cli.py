@@ -194,6 +194,15 @@ def test_identify_writes_json_plots_and_a_suggestion(tmp_path):
         assert p["lower"] <= p["upper"]
         assert p["lower"] <= p["estimate"] <= p["upper"]  # always a point estimate
     assert doc["fit"]["seed"] == 0
+    # the fit says how far below the optimum's cost its profiles reach exactly when a profile
+    # point lies more than 0.5 below it, and on that point's profile
+    fit = doc["fit"]
+    lowest = min((d, name) for name, pts in fit["profiles"].items() for _, d in pts)
+    low = fit["below_optimum"]
+    if lowest[0] < -0.5:
+        assert low["depth"] == pytest.approx(-lowest[0]) and low["parameter"] == lowest[1], low
+    else:
+        assert low is None, (lowest, low)
     pngs = sorted(x.name for x in plots.iterdir())
     assert "correlation.png" in pngs and any(x.startswith("fit_0_") for x in pngs)
     assert {"profiles.png", "igr.png"} <= set(pngs)  # every figure the report has

@@ -186,7 +186,8 @@ def likelihood_options(func):
     return likelihood_method_option(
         "How features are compared with the model: the mean of a few seeded realisations at "
         "each point, or a likelihood learned from simulations over the priors and the "
-        "posterior (smooth; χ²₁'s 3.84 is its profile threshold)."
+        "posterior (smooth; its profiles are cut at critical values found by simulating "
+        "recordings near the optimum, never below χ²₁'s 3.84)."
     )(func)
 
 

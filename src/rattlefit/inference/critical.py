@@ -73,8 +73,8 @@ class CriticalValues:
 
     def as_dict(self, names: Mapping) -> dict:
         """The JSON record: each quantity by ``names[key]``, its critical value and the share
-        of its statistics above χ²₁'s 3.84 (the coverage the χ²₁ threshold would give, from
-        below)."""
+        of its statistics at or below χ²₁'s 3.84 (the coverage the χ²₁ threshold would
+        give)."""
         return {
             "level": self.level,
             "simulations": self.simulations,
