@@ -97,6 +97,11 @@ RECIPES: dict[str, tuple[str, float]] = {
         "--result studies/results/diagnose_full_study.json",
         60,
     ),
+    "fixed_step.json": (
+        "python benchmarks/fixed_step.py --steps-per-sample 1 2 3 5 10 "
+        "--json benchmarks/results/fixed_step.json",
+        6,
+    ),
     "step_anatomy.json": (
         "python benchmarks/step_anatomy.py --json benchmarks/results/step_anatomy.json",
         2,
