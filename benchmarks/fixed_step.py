@@ -49,11 +49,9 @@ from rattlefit.simulation.solve import simulate
 from rattlefit.testing.results import provenance, write_result
 from rattlefit.testing.shared import operating_points, truth_params
 from run import FORWARD_POINTS as POINTS
-from step_anatomy import compiled_block, model_field, rows_of
+from step_anatomy import SAMPLE_RATE, compiled_block, model_field, rows_of
 from suite_report import rms_z
-from suite_steps import BURN_IN, DURATION, Z_MATCH, M, atol, release_fractions
-
-SAMPLE_RATE = 10_000.0  # the bundled recordings' (the batch)
+from suite_steps import BURN_IN, DURATION, Z_MATCH, M, release_fractions, sim_options
 
 RAW = Path(__file__).resolve().parent / "results" / "raw" / "full.json"
 #: rattlefit's adaptive path at the forward comparison's matched tolerance.
@@ -112,13 +110,7 @@ def one_point(name, s, truth, reference, ks, repeats):
     params = truth_params(s, truth)
     c = s.geometry.backlash / 2
     y0s = [jnp.asarray([f * c, 0.0]) for f in release_fractions(M)]
-    adaptive = dict(
-        duration=DURATION,
-        sample_rate=s.sample_rate,
-        burn_in=BURN_IN,
-        rtol=ADAPTIVE_RTOL,
-        atol=atol(ADAPTIVE_RTOL),
-    )
+    adaptive = sim_options(s, ADAPTIVE_RTOL)
     t_adaptive = best_time(lambda: simulate(s.model, params, s.drive, y0=y0s[0], **adaptive), 3)
     rows = []
     for k in ks:
